@@ -1,0 +1,35 @@
+"""The concept model shared by every world: concept space, scenes, edits, tasks, trajectories."""
+
+from sim.core.concepts import ABSENT, PRESENCE, PRESENT, Concept, ConceptSpace, Slot
+from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
+from sim.core.errors import UserError
+from sim.core.scene import Obj, Scene
+from sim.core.task import SHIFTS, TRAIN, Reward, Task, check_shift
+from sim.core.trajectory import Trajectory
+from sim.core.world import ActBatch, World
+
+__all__ = [
+    "ABSENT",
+    "EMPTY",
+    "PRESENCE",
+    "PRESENT",
+    "SHIFTS",
+    "TRAIN",
+    "ActBatch",
+    "Change",
+    "Concept",
+    "ConceptSpace",
+    "Edit",
+    "Obj",
+    "Reward",
+    "Scene",
+    "Slot",
+    "Task",
+    "Trajectory",
+    "UserError",
+    "World",
+    "apply",
+    "check_shift",
+    "effective",
+    "single_changes",
+]

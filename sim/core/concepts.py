@@ -1,0 +1,136 @@
+"""The concept space: slots x concepts x instantiations, plus presence, and its one-hot Phi."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.core.errors import UserError
+from sim.core.scene import Obj, Scene
+
+PRESENCE = "presence"
+PRESENT, ABSENT = "present", "absent"
+
+
+@dataclass(frozen=True)
+class Concept:
+    """One visual concept of a slot (e.g. colour) and its finite instantiations."""
+
+    name: str
+    values: tuple[str, ...]
+
+    def index(self, value: str) -> int:
+        if value not in self.values:
+            raise UserError(
+                f"unknown {self.name} {value!r}; accepted: {', '.join(self.values)}"
+            )
+        return self.values.index(value)
+
+
+@dataclass(frozen=True)
+class Slot:
+    """An object slot. `optional` slots can be absent, so presence is an editable concept."""
+
+    name: str
+    concepts: tuple[Concept, ...]
+    optional: bool = False
+
+    def concept(self, name: str) -> Concept:
+        for c in self.concepts:
+            if c.name == name:
+                return c
+        names = [c.name for c in self.concepts] + ([PRESENCE] if self.optional else [])
+        raise UserError(
+            f"unknown concept {name!r} for slot {self.name!r}; accepted: {', '.join(names)}"
+        )
+
+    @property
+    def width(self) -> int:
+        return sum(len(c.values) for c in self.concepts)
+
+
+@dataclass(frozen=True)
+class ConceptSpace:
+    """Phi's codomain: the ordered slots of a world.
+
+    Phi(scene) concatenates, slot by slot, one one-hot vector per concept; an absent slot is all
+    zeros. Positions are not part of Phi (they are carried by the scene, outside the space).
+    """
+
+    slots: tuple[Slot, ...]
+
+    def slot(self, name: str) -> Slot:
+        for s in self.slots:
+            if s.name == name:
+                return s
+        raise UserError(
+            f"unknown slot {name!r}; accepted: {', '.join(s.name for s in self.slots)}"
+        )
+
+    @property
+    def dim(self) -> int:
+        return sum(s.width for s in self.slots)
+
+    def offsets(self) -> dict[tuple[str, str], int]:
+        """Start index in Phi of each (slot, concept) one-hot."""
+        out, i = {}, 0
+        for s in self.slots:
+            for c in s.concepts:
+                out[(s.name, c.name)] = i
+                i += len(c.values)
+        return out
+
+    def encode(self, scene: Scene) -> np.ndarray:
+        """Phi(scene) -> uint8 (D,) one-hot per (slot, concept); zeros for absent slots."""
+        phi = np.zeros(self.dim, dtype=np.uint8)
+        offsets = self.offsets()
+        for s in self.slots:
+            obj = scene.obj(s.name)
+            if not obj.present:
+                continue
+            for c in s.concepts:
+                phi[offsets[(s.name, c.name)] + c.index(obj.value(c.name))] = 1
+        return phi
+
+    def decode(self, phi: np.ndarray, like: Scene) -> Scene:
+        """Phi^-1 on concepts: the scene `like` with every slot's presence and values from phi.
+
+        Absent slots keep the values they had in `like` (their latent appearance), so
+        decode(encode(s), s) == s exactly.
+        """
+        phi = np.asarray(phi)
+        assert phi.shape == (self.dim,), f"phi must have shape ({self.dim},), got {phi.shape}"
+        offsets = self.offsets()
+        objs = []
+        for s in self.slots:
+            obj = like.obj(s.name)
+            block = [
+                phi[offsets[(s.name, c.name)] : offsets[(s.name, c.name)] + len(c.values)]
+                for c in s.concepts
+            ]
+            present = bool(block and block[0].any())
+            if not present and not s.optional:
+                raise UserError(f"phi marks slot {s.name!r} absent, but it cannot be absent")
+            if present:
+                values = []
+                for c, b in zip(s.concepts, block, strict=True):
+                    if b.sum() != 1:
+                        raise UserError(f"phi for {s.name}.{c.name} is not one-hot: {b.tolist()}")
+                    values.append((c.name, c.values[int(np.argmax(b))]))
+                obj = Obj(s.name, True, tuple(values), obj.pos)
+            else:
+                obj = Obj(s.name, False, obj.values, obj.pos)
+            objs.append(obj)
+        return Scene(like.world, tuple(objs), like.agent)
+
+    def check_value(self, slot: str, concept: str, value: str) -> None:
+        """Raise a UserError unless `value` is an instantiation of slot.concept."""
+        s = self.slot(slot)
+        if concept == PRESENCE:
+            if not s.optional:
+                raise UserError(f"slot {slot!r} is always present; its presence cannot change")
+            if value not in (PRESENT, ABSENT):
+                raise UserError(f"presence is {PRESENT!r} or {ABSENT!r}, not {value!r}")
+            return
+        s.concept(concept).index(value)

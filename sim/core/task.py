@@ -1,0 +1,84 @@
+"""Tasks: a scene plus the user's intended reward R' as data; the five shift kinds."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from sim.core.errors import UserError
+from sim.core.scene import Scene
+
+SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr", "other")
+TRAIN = "train"
+
+
+def check_shift(shift: str) -> str:
+    if shift not in SHIFTS:
+        raise UserError(f"unknown shift {shift!r}; accepted: {', '.join(SHIFTS)}")
+    return shift
+
+
+@dataclass(frozen=True)
+class Reward:
+    """The user's intended reward R', as data.
+
+    instruction: what the user wants, in words.
+    relevant: (slot, concept) pairs that matter to R' (concept may be "presence").
+    allowed: for each (slot, concept) that R' leaves open, the instantiations that satisfy it,
+        as (slot, concept, values) triples; fresh tasks from R' draw from these.
+    success: name of the world's success predicate (e.g. "reach_goal").
+    avoid: slots the agent must keep clear of (the world's predicate reads it).
+    """
+
+    instruction: str
+    relevant: frozenset[tuple[str, str]]
+    allowed: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
+    success: str = "reach_goal"
+    avoid: tuple[str, ...] = ()
+
+    def is_relevant(self, slot: str, concept: str) -> bool:
+        return (slot, concept) in self.relevant
+
+    def allowed_values(self, slot: str, concept: str) -> tuple[str, ...] | None:
+        for s, c, vals in self.allowed:
+            if (s, c) == (slot, concept):
+                return vals
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "instruction": self.instruction,
+            "relevant": sorted([list(p) for p in self.relevant]),
+            "allowed": [[s, c, list(v)] for s, c, v in self.allowed],
+            "success": self.success,
+            "avoid": list(self.avoid),
+        }
+
+
+@dataclass(frozen=True)
+class Task:
+    """A test (or training) task: its initial scene, R', the shift that made it, and its seed.
+
+    cause: the (slot, concept) the shift generator changed ("presence" for distractors);
+    None for the training task and for `other` (the cause is outside the concept space).
+    """
+
+    world: str
+    scene: Scene
+    reward: Reward
+    shift: str
+    seed: int
+    cause: tuple[str, str] | None = None
+
+    def with_scene(self, scene: Scene) -> Task:
+        return replace(self, scene=scene)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "world": self.world,
+            "shift": self.shift,
+            "seed": self.seed,
+            "cause": list(self.cause) if self.cause else None,
+            "scene": self.scene.to_dict(),
+            "reward": self.reward.to_dict(),
+        }

@@ -1,0 +1,128 @@
+"""The World interface every environment implements, and rollouts written once against it."""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from sim.core.concepts import ConceptSpace
+from sim.core.edit import Edit, apply
+from sim.core.scene import Scene
+from sim.core.task import Task
+from sim.core.trajectory import Trajectory
+
+# obs uint8 (B, H, W, 3) -> actions float32 (B, A) or int64 (B,)
+ActBatch = Callable[[np.ndarray], np.ndarray]
+
+
+class World(abc.ABC):
+    """One world: its concept space, renderer (Phi^-1), dynamics, expert and task generator.
+
+    Attributes set by each world:
+        name: registry name ("nav2d", "doorkey", "tabletop").
+        space: the concept space.
+        horizon: steps per episode (T).
+        obs_shape: (H, W, 3) of a rendered observation.
+        discrete: True when actions are integers in [0, action_dim).
+        action_dim: continuous action size, or the number of discrete actions.
+        epsilon: the search's per-step L1 bound on action distance (continuous worlds).
+    """
+
+    name: str
+    space: ConceptSpace
+    horizon: int
+    obs_shape: tuple[int, int, int]
+    discrete: bool
+    action_dim: int
+    epsilon: float = 0.0
+
+    # -- appearance ---------------------------------------------------------------------------
+    @abc.abstractmethod
+    def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
+        """uint8 (B, H, W, 3); deterministic: the same scene gives the same pixels."""
+
+    def render(self, scene: Scene) -> np.ndarray:
+        """uint8 (H, W, 3)."""
+        return self.render_batch([scene])[0]
+
+    def apply(self, scene: Scene, edit: Edit) -> Scene:
+        """The editor f on this world's concept space."""
+        return apply(self.space, scene, edit)
+
+    # -- dynamics -----------------------------------------------------------------------------
+    @abc.abstractmethod
+    def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:
+        """Advance every scene by its action: actions (B, A) float32 or (B,) int64.
+
+        A scene for which `done` holds is returned unchanged (the episode has ended).
+        """
+
+    def done(self, scene: Scene) -> bool:
+        """True once nothing more can happen (an episode may end before the horizon)."""
+        return False
+
+    @abc.abstractmethod
+    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+        """R' judged on the states of one rollout (scenes[0] is the initial scene)."""
+
+    # -- tasks and demonstrations -------------------------------------------------------------
+    @abc.abstractmethod
+    def train_task(self, seed: int) -> Task:
+        """A task from the training distribution the base policy is cloned on."""
+
+    @abc.abstractmethod
+    def test_task(self, shift: str, seed: int) -> Task:
+        """A shifted test task of kind `shift` (one of sim.core.task.SHIFTS)."""
+
+    @abc.abstractmethod
+    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
+        """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning)."""
+
+    @abc.abstractmethod
+    def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
+        """The scripted demonstrator's action in `scene`: float32 (A,) or int64 scalar."""
+
+    @abc.abstractmethod
+    def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+        """Positions for adding `slot` to the demonstration's scenes without blocking its path."""
+
+    # -- rollouts, written once ---------------------------------------------------------------
+    def rollout_batch(
+        self, tasks: Sequence[Task], act: ActBatch, *, scenes: Sequence[Scene] | None = None
+    ) -> list[Trajectory]:
+        """Roll `act` out on many tasks in lockstep: one batched render and act per step.
+
+        scenes: initial scenes to start from instead of the tasks' own (e.g. edited ones).
+        """
+        cur = list(scenes if scenes is not None else (t.scene for t in tasks))
+        history = [[s] for s in cur]
+        frames = [self.render_batch(cur)]  # each (B, H, W, 3)
+        actions = []
+        for _ in range(self.horizon):
+            a = np.asarray(act(frames[-1]))  # (B, A) | (B,)
+            cur = self.step_batch(cur, a)
+            for h, s in zip(history, cur, strict=True):
+                h.append(s)
+            frames.append(self.render_batch(cur))
+            actions.append(a)
+        obs = np.stack(frames, axis=1)  # (B, T+1, H, W, 3)
+        acts = np.stack(actions, axis=1)  # (B, T, A) | (B, T)
+        return [
+            Trajectory(tuple(h), obs[i], acts[i], self.success(t, h))
+            for i, (t, h) in enumerate(zip(tasks, history, strict=True))
+        ]
+
+    def rollout(self, task: Task, act: ActBatch, *, scene: Scene | None = None) -> Trajectory:
+        return self.rollout_batch([task], act, scenes=None if scene is None else [scene])[0]
+
+    def demonstrate(self, task: Task) -> Trajectory:
+        """The scripted expert's closed-loop demonstration of `task`."""
+        scenes, actions = [task.scene], []
+        for _ in range(self.horizon):
+            a = np.asarray(self.expert_action(task, scenes[-1]))
+            scenes.append(self.step_batch([scenes[-1]], a[None])[0])
+            actions.append(a)
+        obs = self.render_batch(scenes)  # (T+1, H, W, 3)
+        return Trajectory(tuple(scenes), obs, np.stack(actions), self.success(task, scenes))

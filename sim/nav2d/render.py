@@ -1,0 +1,84 @@
+"""The numpy renderer of 2D navigation: 36x36x3, black arena [-6, 6]^2, 3 pixels per unit."""
+
+from __future__ import annotations
+
+import numpy as np
+
+SIZE_PX = 36
+ARENA = 6.0  # the arena is [-ARENA, ARENA]^2
+PX_PER_UNIT = SIZE_PX / (2 * ARENA)
+AGENT_RADIUS = 1.0
+COLOURS: dict[str, tuple[int, int, int]] = {
+    "red": (230, 40, 40),
+    "green": (40, 200, 70),
+    "blue": (50, 100, 240),
+    "yellow": (240, 210, 40),
+}
+SHAPES = ("X", "square", "triangle", "diamond")
+CORNERS: tuple[tuple[float, float], ...] = ((-5.0, 5.0), (5.0, 5.0), (-5.0, -5.0), (5.0, -5.0))
+OBJ_PX = 6  # objects are 6x6 pixel glyphs centred on their corner
+
+
+def _glyph(shape: str) -> np.ndarray:
+    """bool (6, 6) mask of a shape, rows top to bottom."""
+    c = np.arange(OBJ_PX) + 0.5 - OBJ_PX / 2  # pixel centres in [-2.5, 2.5]
+    v, u = np.meshgrid(c, c, indexing="ij")  # v: down, u: right
+    if shape == "X":
+        return np.abs(np.abs(u) - np.abs(v)) <= 1.0
+    if shape == "square":
+        return np.ones((OBJ_PX, OBJ_PX), bool)
+    if shape == "triangle":
+        return np.abs(u) <= (v + 3.0) / 2.0
+    if shape == "diamond":
+        return np.abs(u) + np.abs(v) <= 3.0
+    raise ValueError(shape)
+
+
+def to_px(x: float, y: float) -> tuple[float, float]:
+    """World (x, y) -> continuous pixel (col, row); row 0 is the top (y = +6)."""
+    return (x + ARENA) * PX_PER_UNIT, (ARENA - y) * PX_PER_UNIT
+
+
+def _layer_table() -> tuple[np.ndarray, np.ndarray]:
+    """Every (corner, shape, colour) glyph as a full-frame mask and RGB layer.
+
+    Returns masks bool (N, 36, 36) and colours uint8 (N, 3) with N = corners*shapes*colours,
+    indexed by layer_index().
+    """
+    masks = np.zeros((len(CORNERS), len(SHAPES), SIZE_PX, SIZE_PX), bool)
+    for i, (x, y) in enumerate(CORNERS):
+        col, row = to_px(x, y)
+        r0, c0 = int(row) - OBJ_PX // 2, int(col) - OBJ_PX // 2
+        for j, shape in enumerate(SHAPES):
+            masks[i, j, r0 : r0 + OBJ_PX, c0 : c0 + OBJ_PX] = _glyph(shape)
+    return masks.reshape(-1, SIZE_PX, SIZE_PX), np.array(list(COLOURS.values()), np.uint8)
+
+
+_MASKS, _RGB = _layer_table()  # (corners*shapes, 36, 36), (colours, 3)
+_CENTRES = (np.arange(SIZE_PX) + 0.5) / PX_PER_UNIT - ARENA  # pixel centres in world units
+
+
+def corner_index(pos: tuple[float, ...]) -> int:
+    key = (float(pos[0]), float(pos[1]))
+    if key not in CORNERS:
+        raise ValueError(f"nav2d objects sit on corners {CORNERS}, not at {key}")
+    return CORNERS.index(key)
+
+
+def render_arrays(
+    agent_xy: np.ndarray,  # (B, 2) float
+    obj_glyph: np.ndarray,  # (B, K) int: corner * len(SHAPES) + shape
+    obj_colour: np.ndarray,  # (B, K) int
+    obj_present: np.ndarray,  # (B, K) bool
+) -> np.ndarray:
+    """Vectorised render of B scenes with K object slots each -> uint8 (B, 36, 36, 3)."""
+    b = agent_xy.shape[0]
+    out = np.zeros((b, SIZE_PX, SIZE_PX, 3), np.uint8)
+    for k in range(obj_glyph.shape[1]):
+        mask = _MASKS[obj_glyph[:, k]] & obj_present[:, k, None, None]  # (B, 36, 36)
+        out = np.where(mask[..., None], _RGB[obj_colour[:, k]][:, None, None, :], out)
+    dx = _CENTRES[None, None, :] - agent_xy[:, 0, None, None]  # (B, 1, 36)
+    dy = _CENTRES[::-1][None, :, None] - agent_xy[:, 1, None, None]  # (B, 36, 1)
+    disc = dx**2 + dy**2 <= AGENT_RADIUS**2  # (B, 36, 36)
+    out[disc] = 255
+    return out
