@@ -3,6 +3,7 @@
 from sim.core.concepts import ABSENT, PRESENCE, PRESENT, Concept, ConceptSpace, Slot
 from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
 from sim.core.errors import UserError
+from sim.core.feedback import Feedback, Label
 from sim.core.scene import Obj, Scene
 from sim.core.task import SHIFTS, TRAIN, Reward, Task, check_shift
 from sim.core.trajectory import Trajectory
@@ -20,6 +21,8 @@ __all__ = [
     "Concept",
     "ConceptSpace",
     "Edit",
+    "Feedback",
+    "Label",
     "Obj",
     "Reward",
     "Scene",

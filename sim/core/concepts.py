@@ -22,9 +22,7 @@ class Concept:
 
     def index(self, value: str) -> int:
         if value not in self.values:
-            raise UserError(
-                f"unknown {self.name} {value!r}; accepted: {', '.join(self.values)}"
-            )
+            raise UserError(f"unknown {self.name} {value!r}; accepted: {', '.join(self.values)}")
         return self.values.index(value)
 
 
@@ -64,9 +62,7 @@ class ConceptSpace:
         for s in self.slots:
             if s.name == name:
                 return s
-        raise UserError(
-            f"unknown slot {name!r}; accepted: {', '.join(s.name for s in self.slots)}"
-        )
+        raise UserError(f"unknown slot {name!r}; accepted: {', '.join(s.name for s in self.slots)}")
 
     @property
     def dim(self) -> int:

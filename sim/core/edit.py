@@ -61,7 +61,9 @@ class Edit:
         try:
             return cls.of(*(Change(d["slot"], d["concept"], d["from"], d["to"]) for d in items))
         except (KeyError, TypeError) as e:
-            raise UserError(f"malformed edit {items!r}: each change needs slot, concept, from, to") from e
+            raise UserError(
+                f"malformed edit {items!r}: each change needs slot, concept, from, to"
+            ) from e
 
     def __str__(self) -> str:
         return "; ".join(str(c) for c in self.ordered) or "(no change)"

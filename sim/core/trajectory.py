@@ -85,7 +85,9 @@ class Trajectory:
         except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
             if isinstance(e, UserError):
                 raise
-            raise UserError(f"{path}: not a readable trajectory ({e}); expected {expected}") from None
+            raise UserError(
+                f"{path}: not a readable trajectory ({e}); expected {expected}"
+            ) from None
         try:
             scenes = tuple(Scene.from_dict(d) for d in json.loads(scenes_json))
             return cls(scenes, obs, actions, success)

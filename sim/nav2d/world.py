@@ -23,6 +23,10 @@ from sim.nav2d import render as R
 
 START = (-5.0, 5.0)
 GOAL = (5.0, -5.0)
+# Training layouts (agent start, goal): every pair of distinct corners with the goal off the
+# bottom-left corner. The start varies, so the policy must tell the agent from the goal by
+# appearance; the bottom-left goal is never seen, which is what the `other` shift uses.
+TRAIN_LAYOUTS = tuple((a, g) for g in R.CORNERS if g != (-5.0, -5.0) for a in R.CORNERS if a != g)
 HORIZON = 20
 SUCCESS_RADIUS = 1.0  # success: within this distance of the goal after the last step
 AVOID_RADIUS = 2.0  # an avoided distractor must never be this close
@@ -102,13 +106,17 @@ class Nav2DWorld(World):
         return np.clip(np.array([(gx - x) / left, (gy - y) / left], np.float32), -1, 1)
 
     # -- tasks --------------------------------------------------------------------------------
-    def _scene(self, goal_values, goal_pos=GOAL, distractor=None, distractor_pos=(5.0, 5.0)):
+    def _scene(
+        self, goal_values, goal_pos=GOAL, distractor=None, distractor_pos=(5.0, 5.0), start=START
+    ):
         present = distractor is not None
         d_values = distractor or goal_values
         return Scene(
             self.name,
             (
-                Obj("goal", True, (("colour", goal_values[0]), ("shape", goal_values[1])), goal_pos),
+                Obj(
+                    "goal", True, (("colour", goal_values[0]), ("shape", goal_values[1])), goal_pos
+                ),
                 Obj(
                     "distractor",
                     present,
@@ -116,12 +124,18 @@ class Nav2DWorld(World):
                     distractor_pos,
                 ),
             ),
-            (*START, 0.0),
+            (*start, 0.0),
         )
 
     def train_task(self, seed: int = 0) -> Task:
-        """The training task: a red X goal bottom-right, agent top-left, no distractor."""
-        scene = self._scene(("red", "X"))
+        """A training task: the red X and the agent on two corners (TRAIN_LAYOUTS[seed % 9]).
+
+        Seed 0 is the canonical layout: agent top-left, goal bottom-right, no distractor.
+        """
+        start, goal = TRAIN_LAYOUTS[
+            (seed + TRAIN_LAYOUTS.index((START, GOAL))) % len(TRAIN_LAYOUTS)
+        ]
+        scene = self._scene(("red", "X"), goal_pos=goal, start=start)
         return Task(self.name, scene, self._train_reward(), "train", seed)
 
     @staticmethod
@@ -190,7 +204,9 @@ class Nav2DWorld(World):
                 )
             return Task(self.name, scene, reward, shift, seed, ("distractor", PRESENCE))
         # other: the same goal, in the bottom-left corner; no concept edit explains it
-        reward = Reward("go to the red X, wherever it is", train.reward.relevant, train.reward.allowed)
+        reward = Reward(
+            "go to the red X, wherever it is", train.reward.relevant, train.reward.allowed
+        )
         return Task(self.name, self._scene(goal, goal_pos=(-5.0, -5.0)), reward, shift, seed)
 
     def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
@@ -207,19 +223,27 @@ class Nav2DWorld(World):
                 else:
                     o = o.with_value(concept, v)
                 scene = scene.with_obj(o)
+            g = scene.obj("goal")
+            if task.shift == "other":  # R' holds wherever the goal is
+                start, goal = [(a, g.pos) for a in R.CORNERS if a != g.pos][rng.integers(3)]
+            else:
+                start, goal = TRAIN_LAYOUTS[rng.integers(len(TRAIN_LAYOUTS))]
+            scene = Scene(scene.world, scene.objects, (*start, 0.0)).with_obj(
+                Obj(g.slot, True, g.values, goal)
+            )
             d = scene.obj("distractor")
             if d.present:
-                d = Obj(d.slot, True, d.values, R.CORNERS[1 + rng.integers(2)])
-                scene = scene.with_obj(d)
-            if task.shift == "other":
-                g = scene.obj("goal")
-                scene = scene.with_obj(Obj(g.slot, True, g.values, R.CORNERS[1 + rng.integers(3)]))
-            tasks.append(Task(self.name, scene, task.reward, task.shift, seed * 1000 + i, task.cause))
+                free = [c for c in R.CORNERS if c not in (start, goal)]
+                scene = scene.with_obj(Obj(d.slot, True, d.values, free[rng.integers(len(free))]))
+            tasks.append(
+                Task(self.name, scene, task.reward, task.shift, seed * 1000 + i, task.cause)
+            )
         return tasks
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         """Free corners at least AVOID_RADIUS from every agent position of the demonstration."""
         taken = {o.pos for o in task.scene.objects if o.present and o.slot != slot}
+        taken.add(tuple(task.scene.agent[:2]))
         return [
             c
             for c in R.CORNERS

@@ -1,0 +1,22 @@
+"""Image policies: the CNN, behaviour cloning, finetuning, augmentation, evaluation, checkpoints."""
+
+from policy.augment import augment
+from policy.checkpoint import load_policy, save_policy
+from policy.evaluate import evaluate, failing_test_task
+from policy.model import ImagePolicy, Policy, PolicyConfig
+from policy.train import TrainConfig, base_policy, behaviour_clone, finetune
+
+__all__ = [
+    "ImagePolicy",
+    "Policy",
+    "PolicyConfig",
+    "TrainConfig",
+    "augment",
+    "base_policy",
+    "behaviour_clone",
+    "evaluate",
+    "failing_test_task",
+    "finetune",
+    "load_policy",
+    "save_policy",
+]

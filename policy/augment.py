@@ -1,0 +1,79 @@
+"""Augmentation: re-render the demonstration over every allowed instantiation of its TI concepts."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from sim.core import ABSENT, PRESENCE, PRESENT, Feedback, Obj, Scene, Task, Trajectory, World
+
+MAX_AUGMENTED = 100  # default cap on augmented demonstrations (drawn evenly when exceeded)
+
+
+def _variants(world: World, task: Task, demo: Trajectory, feedback: Feedback):
+    """Per TI label, the scene transforms it allows: functions Scene -> Scene."""
+    per_label = []
+    for lab in feedback.irrelevant:
+        slot = world.space.slot(lab.slot)
+        obj = task.scene.obj(lab.slot)
+        if lab.concept != PRESENCE:
+            values = lab.acceptable or slot.concept(lab.concept).values
+            per_label.append([("set", lab.slot, lab.concept, v) for v in values])
+            continue
+        options = []
+        if ABSENT in (lab.acceptable or (ABSENT,)) and obj.present:
+            options.append(("remove", lab.slot))
+        if PRESENT in (lab.acceptable or (PRESENT,)):
+            looks = itertools.product(*(c.values for c in slot.concepts))
+            places = world.placements(task, lab.slot, demo)
+            names = [c.name for c in slot.concepts]
+            options += [
+                ("add", lab.slot, tuple(zip(names, look)), pos) for look in looks for pos in places
+            ]
+        per_label.append(options)
+    return per_label
+
+
+def _transform(scene: Scene, ops) -> Scene:
+    for op in ops:
+        o = scene.obj(op[1])
+        if op[0] == "set":
+            o = o.with_value(op[2], op[3])
+        elif op[0] == "remove":
+            o = Obj(o.slot, False, o.values, o.pos)
+        else:  # add
+            o = Obj(o.slot, True, op[2], op[3])
+        scene = scene.with_obj(o)
+    return scene
+
+
+def augment(
+    world: World,
+    task: Task,
+    demo: Trajectory,
+    feedback: Feedback,
+    *,
+    max_augmented: int = MAX_AUGMENTED,
+    seed: int = 0,
+) -> list[Trajectory]:
+    """The demonstration re-rendered for every combination the TI labels allow.
+
+    Each augmented trajectory keeps the demonstrated actions; its states are the demonstrated
+    states with the concept edited (or the distractor added at a placement off the path, or
+    removed). Combinations identical to the demonstration are skipped. When there are more
+    than `max_augmented`, that many are drawn without replacement (seeded).
+    """
+    per_label = _variants(world, task, demo, feedback)
+    if not per_label:
+        return []
+    combos = [c for c in itertools.product(*per_label) if _transform(task.scene, c) != task.scene]
+    if len(combos) > max_augmented:
+        pick = np.random.default_rng(seed).choice(len(combos), max_augmented, replace=False)
+        combos = [combos[i] for i in sorted(pick)]
+    out = []
+    for ops in combos:
+        scenes = tuple(_transform(s, ops) for s in demo.scenes)
+        obs = world.render_batch(scenes)  # (T+1, H, W, 3)
+        out.append(Trajectory(scenes, obs, demo.actions, demo.success))
+    return out

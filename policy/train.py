@@ -1,0 +1,141 @@
+"""Behaviour cloning and finetuning: seed, data, model, loop, save — as callable functions."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from policy.checkpoint import load_policy, save_policy
+from policy.model import ImagePolicy, Policy, PolicyConfig
+from sim.core import Trajectory, World
+
+N_TRAIN_DEMOS = 10
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation settings for cloning and finetuning."""
+
+    steps: int = 400
+    """Gradient steps."""
+    batch_size: int = 64
+    lr: float = 1e-3
+    seed: int = 0
+
+
+BASE = TrainConfig()
+FINETUNE = TrainConfig(steps=300, lr=5e-4)
+
+# loss per step -> None; the recorder and the page draw the curve from these
+LossCallback = Callable[[int, float], None]
+
+
+def transitions(world: World, demos: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """Stack the (observation, action) pairs of live steps: uint8 (N, H, W, 3), actions (N, ...)."""
+    obs, act = [], []
+    for d in demos:
+        live = [t for t in range(d.horizon) if not world.done(d.scenes[t])]
+        obs.append(d.observations[live])
+        act.append(d.actions[live])
+    return np.concatenate(obs), np.concatenate(act)
+
+
+def behaviour_clone(
+    world: World,
+    demos: Sequence[Trajectory],
+    *,
+    config: TrainConfig = BASE,
+    init: Policy | None = None,
+    on_loss: LossCallback | None = None,
+) -> tuple[Policy, list[float]]:
+    """Fit a policy to the demonstrations (from `init`'s copy when given). Returns it and the losses."""
+    torch.manual_seed(config.seed)
+    gen = np.random.default_rng(config.seed)
+    obs, act = transitions(world, demos)  # (N, H, W, 3), (N, A) | (N,)
+    if init is not None:
+        net = init.copy().net
+    else:
+        net = ImagePolicy(
+            PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+        )
+    net.train()
+    opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    x_all = torch.from_numpy(obs)
+    if world.discrete:
+        y_all = torch.from_numpy(act.astype(np.int64))
+        loss_fn: Callable = nn.CrossEntropyLoss()
+    else:
+        y_all = torch.from_numpy(act.astype(np.float32))
+
+        def loss_fn(pred, y):
+            return ((pred - y) ** 2).sum(dim=1).mean()  # mean L2 of the action error
+
+    losses = []
+    for step in range(config.steps):
+        idx = torch.from_numpy(gen.integers(0, len(x_all), size=min(config.batch_size, len(x_all))))
+        loss = loss_fn(net(x_all[idx]), y_all[idx])
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(loss.item())
+        if on_loss is not None:
+            on_loss(step, losses[-1])
+    return Policy(net.eval()), losses
+
+
+def finetune(
+    world: World,
+    base: Policy,
+    demos: Sequence[Trajectory],
+    *,
+    config: TrainConfig = FINETUNE,
+    on_loss: LossCallback | None = None,
+) -> tuple[Policy, list[float]]:
+    """Finetune a copy of `base` on the demonstration and its augmentations; base is untouched."""
+    return behaviour_clone(world, demos, config=config, init=base, on_loss=on_loss)
+
+
+def cache_dir() -> Path:
+    """Where base policies are cached: $DFA_CACHE, else ~/.cache/dfa."""
+    return Path(os.environ.get("DFA_CACHE", Path.home() / ".cache" / "dfa"))
+
+
+def base_policy(
+    world: World,
+    *,
+    seed: int = 0,
+    config: TrainConfig = BASE,
+    retrain: bool = False,
+    on_loss: LossCallback | None = None,
+) -> Policy:
+    """The base policy of `world`: cloned on 10 expert demonstrations of the training task.
+
+    Cached under cache_dir()/policies/<world>-<hash of the training recipe>/.
+    """
+    demos = [
+        world.demonstrate(world.train_task(seed=seed * N_TRAIN_DEMOS + i))
+        for i in range(N_TRAIN_DEMOS)
+    ]
+    recipe = {
+        "world": world.name,
+        "seed": seed,
+        "train": asdict(config),
+        "demos": hashlib.sha256(
+            b"".join(d.observations.tobytes() + d.actions.tobytes() for d in demos)
+        ).hexdigest(),
+    }
+    key = hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()[:12]
+    folder = cache_dir() / "policies" / f"{world.name}-{key}"
+    if not retrain and (folder / "model.safetensors").is_file():
+        return load_policy(folder, world=world.name)
+    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    save_policy(policy, folder, meta={**recipe, "final_loss": losses[-1]})
+    return policy
