@@ -1,0 +1,115 @@
+"""The counterfactual search: the smallest concept edits under which the policy matches the demo."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from policy.model import Policy
+from search.enumerate import combinations, count
+from search.lockstep import Candidate, rollout_lockstep
+from sim.core import Change, Scene, Trajectory, World
+
+# (size, candidates done, candidates in this size) -> None
+ProgressCallback = Callable[[int, int, int], None]
+CandidateCallback = Callable[[Candidate], None]
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    """How far and how the search looks."""
+
+    max_size: int = 2
+    """Largest edit size tried."""
+    epsilon: float | None = None
+    """Per-step L1 bound on action distance; the world's default when None (continuous only)."""
+    wave: int = 1024
+    """Candidates rolled out together in one lockstep wave."""
+    first_only: bool = False
+    """Stop at the first valid edit instead of returning every minimal one (large spaces)."""
+    prior: bool = True
+    """Order edits of size >= 2 by the first-step distances their single changes got."""
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """What the search found.
+
+    counterfactuals: every valid edit of the smallest size that has one, ranked by total
+        action distance (best first); empty when there is no counterfactual.
+    tried: every candidate rolled out, in the order tried.
+    size: the size of the counterfactuals, or None.
+    """
+
+    counterfactuals: tuple[Candidate, ...]
+    tried: tuple[Candidate, ...]
+    size: int | None
+    max_size: int
+
+    @property
+    def found(self) -> bool:
+        return bool(self.counterfactuals)
+
+    @property
+    def best(self) -> Candidate | None:
+        return self.counterfactuals[0] if self.counterfactuals else None
+
+    def summary(self) -> str:
+        if not self.found:
+            return (
+                f"no counterfactual: no edit of up to {self.max_size} concept changes makes the "
+                "policy follow the demonstration; the cause is outside the concept space"
+            )
+        edits = "; or ".join(str(c.edit) for c in self.counterfactuals)
+        return f"counterfactual of size {self.size}: {edits}"
+
+
+def counterfactual_search(
+    world: World,
+    policy: Policy,
+    scene: Scene,
+    demo: Trajectory,
+    *,
+    config: SearchConfig = SearchConfig(),
+    on_candidate: CandidateCallback | None = None,
+    on_progress: ProgressCallback | None = None,
+) -> SearchResult:
+    """Search edits of size 1, 2, ... for those after which the policy matches `demo`.
+
+    scene: the test task's initial scene (the demonstration starts from it).
+    Stops at the first size with a valid edit and returns all valid edits of that size.
+    """
+    eps = world.epsilon if config.epsilon is None else config.epsilon
+    tried: list[Candidate] = []
+    prior: dict[Change, float] = {}
+    for size in range(1, config.max_size + 1):
+        edits = combinations(
+            world.space, scene, size, prior=prior if (config.prior and size > 1) else None
+        )
+        total = count(world.space, scene, size)
+        done, valid = 0, []
+        if on_progress is not None:
+            on_progress(size, 0, total)
+        while True:
+            wave = list(itertools.islice(edits, config.wave))
+            if not wave:
+                break
+            results = rollout_lockstep(world, policy, scene, demo, wave, epsilon=eps)
+            for cand in results:
+                tried.append(cand)
+                if size == 1:
+                    prior[next(iter(cand.edit.changes))] = float(cand.distances[0])
+                if cand.valid:
+                    valid.append(cand)
+                if on_candidate is not None:
+                    on_candidate(cand)
+            done += len(wave)
+            if on_progress is not None:
+                on_progress(size, done, total)
+            if valid and config.first_only:
+                break
+        if valid:
+            ranked = tuple(sorted(valid, key=lambda c: (c.total, str(c.edit))))
+            return SearchResult(ranked, tuple(tried), size, config.max_size)
+    return SearchResult((), tuple(tried), None, config.max_size)

@@ -1,0 +1,102 @@
+"""Roll many edited scenes out in lockstep against a demonstration, dropping early."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from policy.model import Policy, probabilities
+from sim.core import Edit, Scene, Trajectory, World
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """One edit tried by the search.
+
+    distances: float32 (T,) per-step action distance to the demonstration (L1 for continuous
+        worlds; 1 - p(demonstrated action) for discrete ones); NaN after the candidate was
+        dropped and at steps after the demonstration ended.
+    matches: bool (T,) whether the step was within the bound (exact match when discrete).
+    dropped_at: the first step that broke the bound, or None when the edit is valid.
+    """
+
+    edit: Edit
+    distances: np.ndarray  # (T,) float32
+    matches: np.ndarray  # (T,) bool
+    dropped_at: int | None
+
+    @property
+    def valid(self) -> bool:
+        return self.dropped_at is None
+
+    @property
+    def total(self) -> float:
+        """Summed action distance over the steps it was rolled out."""
+        return float(np.nansum(self.distances))
+
+    def to_dict(self) -> dict:
+        return {
+            "edit": self.edit.to_list(),
+            "valid": self.valid,
+            "dropped_at": self.dropped_at,
+            "distances": [None if np.isnan(d) else round(float(d), 6) for d in self.distances],
+        }
+
+
+def compared_steps(world: World, demo: Trajectory) -> int:
+    """Steps at which actions are compared: up to the demonstration's end (done) or horizon."""
+    for t in range(demo.horizon):
+        if world.done(demo.scenes[t]):
+            return t
+    return demo.horizon
+
+
+def rollout_lockstep(
+    world: World,
+    policy: Policy,
+    scene: Scene,
+    demo: Trajectory,
+    edits: Sequence[Edit],
+    *,
+    epsilon: float,
+) -> list[Candidate]:
+    """Roll the policy out from every edited scene at once and compare with the demonstration.
+
+    Each step: one batched render of the live candidates, one batched forward pass, one
+    vectorised dynamics step. A candidate is dropped the first step its action leaves the
+    bound (L1 < epsilon for continuous worlds, exact match for discrete ones).
+    """
+    n, horizon = len(edits), demo.horizon
+    steps = compared_steps(world, demo)
+    distances = np.full((n, horizon), np.nan, np.float32)
+    matches = np.zeros((n, horizon), bool)
+    dropped = np.full(n, -1, np.int64)
+    live = np.arange(n)
+    scenes = [world.apply(scene, e) for e in edits]
+    for t in range(steps):
+        if len(live) == 0:
+            break
+        obs = world.render_batch(scenes)  # (L, H, W, 3)
+        out = policy.outputs(obs)  # (L, A) actions or logits
+        if world.discrete:
+            acts = out.argmax(axis=1)  # (L,)
+            target = int(demo.actions[t])
+            dist = 1.0 - probabilities(out)[:, target]
+            ok = acts == target
+        else:
+            acts = out
+            dist = np.abs(out - demo.actions[t][None]).sum(axis=1)  # (L,)
+            ok = dist < epsilon
+        distances[live, t] = dist
+        matches[live, t] = ok
+        dropped[live[~ok]] = t
+        keep = np.flatnonzero(ok)
+        live = live[keep]
+        if t + 1 < steps and len(live):
+            scenes = world.step_batch([scenes[i] for i in keep], acts[keep])
+    return [
+        Candidate(edits[i], distances[i], matches[i], None if dropped[i] < 0 else int(dropped[i]))
+        for i in range(n)
+    ]
