@@ -210,7 +210,11 @@ class Nav2DWorld(World):
         return Task(self.name, self._scene(goal, goal_pos=(-5.0, -5.0)), reward, shift, seed)
 
     def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
-        """Draw each open (slot, concept) of R' from its allowed values; positions as R' allows."""
+        """Draw each open (slot, concept) of R' from its allowed values.
+
+        The agent and goal keep the task's corners (R' is about what the goal looks like) and a
+        present distractor takes any free corner; for `other`, the corners vary too.
+        """
         rng = np.random.default_rng([seed, 3])
         tasks = []
         for i in range(n):
@@ -224,13 +228,14 @@ class Nav2DWorld(World):
                     o = o.with_value(concept, v)
                 scene = scene.with_obj(o)
             g = scene.obj("goal")
+            start, goal = tuple(scene.agent[:2]), g.pos
             if task.shift == "other":  # R' holds wherever the goal is
-                start, goal = [(a, g.pos) for a in R.CORNERS if a != g.pos][rng.integers(3)]
-            else:
-                start, goal = TRAIN_LAYOUTS[rng.integers(len(TRAIN_LAYOUTS))]
-            scene = Scene(scene.world, scene.objects, (*start, 0.0)).with_obj(
-                Obj(g.slot, True, g.values, goal)
-            )
+                start, goal = [(a, b) for a in R.CORNERS for b in R.CORNERS if a != b][
+                    rng.integers(12)
+                ]
+                scene = Scene(scene.world, scene.objects, (*start, 0.0)).with_obj(
+                    Obj(g.slot, True, g.values, goal)
+                )
             d = scene.obj("distractor")
             if d.present:
                 free = [c for c in R.CORNERS if c not in (start, goal)]

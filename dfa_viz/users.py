@@ -1,0 +1,78 @@
+"""Who answers the loop's questions: the `User` protocol and a simulated user that reads R'."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from sim.core import PRESENCE, Edit, Feedback, Label, Task, Trajectory, World
+
+
+class User(Protocol):
+    """The person in the loop (or a stand-in): judges, demonstrates, labels."""
+
+    def judge(self, task: Task, rollout: Trajectory) -> bool:
+        """True when the rollout failed what the user wanted."""
+        ...
+
+    def demonstrate(self, task: Task) -> Trajectory:
+        """One demonstration of the task from its initial scene."""
+        ...
+
+    def label(self, task: Task, edit: Edit) -> Feedback:
+        """Mark each edited concept TI or TR, with the acceptable instantiations for TI."""
+        ...
+
+
+@dataclass
+class SimulatedUser:
+    """Answers from the task's R': the scripted expert demonstrates; labels come from R'.
+
+    accuracy: probability that each label is right; otherwise the label is flipped (a TI
+        concept called TR, or a TR one called TI with every instantiation accepted).
+    overrides: (slot, concept) -> True (TR) / False (TI), answers fixed by hand.
+    """
+
+    world: World
+    accuracy: float = 1.0
+    seed: int = 0
+    overrides: dict[tuple[str, str], bool] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng([self.seed, 7])
+
+    def judge(self, task: Task, rollout: Trajectory) -> bool:
+        return not rollout.success
+
+    def demonstrate(self, task: Task) -> Trajectory:
+        return self.world.demonstrate(task)
+
+    def label(self, task: Task, edit: Edit) -> Feedback:
+        labels = []
+        for ch in edit.ordered:
+            relevant = task.reward.is_relevant(ch.slot, ch.concept)
+            if (ch.slot, ch.concept) in self.overrides:
+                relevant = self.overrides[(ch.slot, ch.concept)]
+            elif self._rng.random() >= self.accuracy:
+                relevant = not relevant
+            labels.append(
+                Label(
+                    ch.slot,
+                    ch.concept,
+                    relevant,
+                    self._acceptable(task, ch.slot, ch.concept, relevant),
+                )
+            )
+        return Feedback(tuple(labels))
+
+    def _acceptable(self, task: Task, slot: str, concept: str, relevant: bool) -> tuple[str, ...]:
+        if relevant:
+            return ()
+        allowed = task.reward.allowed_values(slot, concept)
+        if allowed and len(allowed) > 1:
+            return allowed
+        if concept == PRESENCE:
+            return ("present", "absent")
+        return self.world.space.slot(slot).concept(concept).values
