@@ -11,6 +11,7 @@ from sim.core.errors import UserError
 # world name -> (module:class of its World, gymnasium id, module:class of its env)
 WORLDS: dict[str, tuple[str, str, str]] = {
     "nav2d": ("sim.nav2d.world:Nav2DWorld", "dfa/Nav2D-v0", "sim.nav2d.env:Nav2DEnv"),
+    "doorkey": ("sim.doorkey.world:DoorKeyWorld", "dfa/DoorKey-v0", "sim.doorkey.env:DoorKeyEnv"),
 }
 
 for _world, _env_id, _entry in WORLDS.values():

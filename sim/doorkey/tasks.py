@@ -1,0 +1,238 @@
+"""DoorKey tasks: the training layout, the five shifts, fresh tasks from R', lava placements.
+
+Every generated layout is solvable by the expert within the horizon: a layout it cannot solve
+is rejected and drawn again from the same generator.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sim.core import PRESENCE, Reward, Scene, Task, Trajectory, check_shift
+from sim.doorkey.expert import path_cells, solvable
+from sim.doorkey.layout import (
+    COLUMNS,
+    LAVA_COLOURS,
+    LAVA_SLOTS,
+    OBJ_COLOURS,
+    OBJ_SLOTS,
+    ROWS,
+    START,
+    WORLD,
+    Cell,
+    interior,
+    make_scene,
+    parse,
+    rows_of,
+)
+
+TRAIN_ROWS = {"key": 5, "door": 3, "goal": 8}  # expert: 25 steps
+TRAIN_COLOURS = {"key": "yellow", "door": "yellow", "goal": "green"}
+# where absent lava slots wait to be added by an edit: the first of these that is free and off
+# the expert's path (then any such cell, row by row)
+LATENT_LAVA: tuple[Cell, ...] = ((8, 9), (2, 9), (7, 6), (2, 7), (8, 1), (7, 10))
+MAX_TRIES = 1000
+
+_PHRASE = {"key": "pick up the {} key", "door": "open the {} door", "goal": "go to the {} goal"}
+_ANY = {
+    "key": "pick up the key (any colour)",
+    "door": "open the door (any colour)",
+    "goal": "go to the goal (any colour)",
+}
+
+LavaSpec = tuple[tuple[bool, str], ...]  # (present, colour) for lava0..lava2
+NO_LAVA: LavaSpec = ((False, "orange"),) * len(LAVA_SLOTS)
+
+
+def neighbours(cell: Cell) -> set[Cell]:
+    """The cell and its four neighbours: what keeping clear of a lava tile forbids."""
+    c, r = cell
+    return {(c, r), (c + 1, r), (c - 1, r), (c, r + 1), (c, r - 1)}
+
+
+# -- rewards --------------------------------------------------------------------------------------
+def _instruction(colours: dict[str, str], any_slot: str | None = None) -> str:
+    """E.g. "pick up the yellow key, open the yellow door and go to the green goal"."""
+    key, door, goal = (
+        _ANY[s] if s == any_slot else _PHRASE[s].format(colours[s]) for s in OBJ_SLOTS
+    )
+    return f"{key}, {door} and {goal}"
+
+
+def object_reward(colours: dict[str, str], *, ti_slot: str | None = None) -> Reward:
+    """R' over key, door and goal colour; `ti_slot`'s colour is left open (task-irrelevant)."""
+    return Reward(
+        _instruction(colours, ti_slot),
+        frozenset((s, "colour") for s in OBJ_SLOTS if s != ti_slot),
+        tuple((s, "colour", OBJ_COLOURS if s == ti_slot else (colours[s],)) for s in OBJ_SLOTS),
+    )
+
+
+# -- layouts --------------------------------------------------------------------------------------
+def _object_cells(rows: dict[str, int]) -> set[Cell]:
+    return {(COLUMNS[s], rows[s]) for s in OBJ_SLOTS} | {START[:2]}
+
+
+def build(
+    rows: dict[str, int],
+    colours: dict[str, str],
+    lavas: LavaSpec,
+    rng: np.random.Generator,
+    *,
+    keep_clear: tuple[str, ...] = (),
+) -> Scene | None:
+    """A solvable initial scene, or None when the expert cannot solve the layout in time.
+
+    Present lava tiles go on random free cells off the expert's path (for slots in `keep_clear`
+    also off the cells next to it); absent ones get their latent cell (LATENT_LAVA).
+    """
+    base = make_scene(rows, colours, tuple((False, c, (0, 0)) for _, c in lavas))
+    st = parse(base)
+    if not solvable(st):
+        return None
+    path = set(path_cells(st))
+    near = set().union(*(neighbours(c) for c in path))
+    free = [c for c in interior() if c not in path and c not in _object_cells(rows)]
+    cells: list[Cell | None] = [None] * len(LAVA_SLOTS)
+    for i, (slot, (present, _)) in enumerate(zip(LAVA_SLOTS, lavas, strict=True)):
+        if present:
+            ok = [c for c in free if c not in cells and (slot not in keep_clear or c not in near)]
+            if not ok:
+                return None
+            cells[i] = ok[rng.integers(len(ok))]
+    for i, (present, _) in enumerate(lavas):
+        if not present:
+            pool = [c for c in LATENT_LAVA if c in free] + free
+            cells[i] = next(c for c in pool if c not in cells)
+    spec = tuple((p, c, cell) for (p, c), cell in zip(lavas, cells, strict=True))
+    scene = make_scene(rows, colours, spec)  # type: ignore[arg-type]
+    return scene if solvable(parse(scene)) else None
+
+
+def _draw(make, what: str) -> Scene:
+    for _ in range(MAX_TRIES):
+        scene = make()
+        if scene is not None:
+            return scene
+    raise RuntimeError(f"no solvable {what} layout in {MAX_TRIES} draws")
+
+
+def _colours(scene: Scene) -> dict[str, str]:
+    return {s: scene.obj(s).value("colour") for s in OBJ_SLOTS}
+
+
+# -- tasks ----------------------------------------------------------------------------------------
+def train_task(seed: int = 0) -> Task:
+    """The training layout: key row 5, door row 3, goal row 8; yellow key and door, green goal;
+    no lava. The same for every seed."""
+    scene = build(TRAIN_ROWS, TRAIN_COLOURS, NO_LAVA, np.random.default_rng(0))
+    assert scene is not None
+    return Task(WORLD, scene, object_reward(TRAIN_COLOURS), "train", seed)
+
+
+def shifted_task(shift: str, seed: int) -> Task:
+    """A shifted task of kind `shift`, drawn from np.random.default_rng([seed, 2])."""
+    check_shift(shift)
+    rng = np.random.default_rng([seed, 2])
+    train = train_task()
+    rows, colours = dict(TRAIN_ROWS), dict(TRAIN_COLOURS)
+    if shift.startswith("object"):
+        slot = str(rng.choice(OBJ_SLOTS))
+        colours[slot] = str(rng.choice([c for c in OBJ_COLOURS if c != colours[slot]]))
+        scene = _draw(lambda: build(rows, colours, NO_LAVA, rng), shift)
+        ti = slot if shift == "object_ti" else None
+        return Task(WORLD, scene, object_reward(colours, ti_slot=ti), shift, seed, (slot, "colour"))
+    if shift == "distractor_ti":
+        n = int(rng.integers(1, len(LAVA_SLOTS) + 1))
+        lavas = tuple((i < n, str(rng.choice(LAVA_COLOURS))) for i in range(len(LAVA_SLOTS)))
+        scene = _draw(lambda: build(rows, colours, lavas, rng), shift)
+        r = train.reward
+        reward = Reward(
+            f"{r.instruction}; any lava off the way does not matter",
+            r.relevant,
+            (
+                *r.allowed,
+                *((s, PRESENCE, ("present", "absent")) for s in LAVA_SLOTS),
+                *((s, "colour", LAVA_COLOURS) for s in LAVA_SLOTS),
+            ),
+        )
+        return Task(WORLD, scene, reward, shift, seed, (LAVA_SLOTS[0], PRESENCE))
+    if shift == "distractor_tr":
+        colour = str(rng.choice(LAVA_COLOURS))
+        lavas = ((True, colour), *NO_LAVA[1:])
+        slot = LAVA_SLOTS[0]
+        scene = _draw(lambda: build(rows, colours, lavas, rng, keep_clear=(slot,)), shift)
+        return Task(
+            WORLD, scene, avoid_reward(train.reward, slot, colour), shift, seed, (slot, PRESENCE)
+        )
+    # other: one object moves to another row; no concept edit explains it
+    slot = str(rng.choice(OBJ_SLOTS))
+
+    def moved() -> Scene | None:
+        new = dict(rows)
+        new[slot] = int(rng.choice([r for r in ROWS if r != rows[slot]]))
+        return build(new, colours, NO_LAVA, rng)
+
+    scene = _draw(moved, shift)
+    r = train.reward
+    reward = Reward(f"{r.instruction}, wherever they are", r.relevant, r.allowed)
+    return Task(WORLD, scene, reward, shift, seed)
+
+
+def avoid_reward(train: Reward, slot: str, colour: str) -> Reward:
+    """R' for distractor_tr: the training reward, and keep clear of `slot`, a `colour` lava."""
+    return Reward(
+        f"{train.instruction}; keep clear of the {colour} lava",
+        train.relevant | {(slot, PRESENCE), (slot, "colour")},
+        (*train.allowed, (slot, PRESENCE, ("present",)), (slot, "colour", (colour,))),
+        avoid=(slot,),
+    )
+
+
+def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
+    """n tasks from the R' of `task`: each allowed (slot, concept) drawn from its allowed values;
+    present lava placed off the expert's path (kept clear of it for avoided slots); for
+    `other`, key, door and goal on random rows. Drawn from np.random.default_rng([seed, 3])."""
+    rng = np.random.default_rng([seed, 3])
+    rows0, colours0 = rows_of(task.scene), _colours(task.scene)
+
+    def one() -> Scene | None:
+        colours = dict(colours0)
+        lavas = [(task.scene.obj(s).present, task.scene.obj(s).value("colour")) for s in LAVA_SLOTS]
+        for slot, concept, values in task.reward.allowed:
+            v = str(values[rng.integers(len(values))])
+            if slot in colours:
+                colours[slot] = v
+            else:
+                i = LAVA_SLOTS.index(slot)
+                p, c = lavas[i]
+                lavas[i] = (v == "present", c) if concept == PRESENCE else (p, v)
+        rows = dict(rows0)
+        if task.shift == "other":
+            rows = {s: int(rng.choice(ROWS)) for s in OBJ_SLOTS}
+        return build(rows, colours, tuple(lavas), rng, keep_clear=task.reward.avoid)
+
+    return [
+        Task(WORLD, _draw(one, "fresh"), task.reward, task.shift, seed * 1000 + i, task.cause)
+        for i in range(n)
+    ]
+
+
+def placements(task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+    """Cells for lava `slot` in every state of `demo` that change none of its steps: free of
+    walls and other objects in every state and off every cell the agent stands on (and, for an
+    avoided slot, off the cells next to them). Row-major (col, row) as floats."""
+    assert slot in LAVA_SLOTS, f"only lava slots can be placed; {slot!r} is not one of {LAVA_SLOTS}"
+    taken: set[Cell] = set()
+    for scene in demo.scenes:
+        st = parse(scene)
+        taken |= neighbours(st.agent) if slot in task.reward.avoid else {st.agent}
+        taken |= {st.door_cell, st.goal, st.key}
+        taken |= {
+            c for s, (c, _) in zip(_present_lava_slots(scene), st.lava, strict=True) if s != slot
+        }
+    return [(float(c), float(r)) for c, r in interior() if (c, r) not in taken]
+
+
+def _present_lava_slots(scene: Scene) -> list[str]:
+    return [s for s in LAVA_SLOTS if scene.obj(s).present]

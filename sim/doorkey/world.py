@@ -1,0 +1,80 @@
+"""The DoorKey world (design section 4): render, dynamics, expert, tasks and success."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from sim.core import Scene, Task, Trajectory, World
+from sim.doorkey import tasks
+from sim.doorkey.dynamics import step_scene
+from sim.doorkey.expert import plan
+from sim.doorkey.layout import HORIZON, LEFT, N_ACTIONS, SIZE_PX, SPACE, WORLD, parse
+from sim.doorkey.render import Renderer
+
+
+class DoorKeyWorld(World):
+    """Key, door, goal and up to three lava tiles on a 12x12 grid; 6 discrete actions, 35 steps.
+
+    Scene.agent = (col, row, dir, carrying, door, t); see sim.doorkey.layout for the layout.
+    """
+
+    name = WORLD
+    space = SPACE
+    horizon = HORIZON
+    obs_shape = (SIZE_PX, SIZE_PX, 3)
+    discrete = True
+    action_dim = N_ACTIONS
+    epsilon = 0.0
+    lossless_frames = True  # gridworld frames are recorded without lossy compression
+
+    def __init__(self) -> None:
+        self._renderer = Renderer()
+
+    # -- appearance ---------------------------------------------------------------------------
+    def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
+        """uint8 (B, 36, 36, 3): minigrid's full-grid render at 3 px per cell, white agent."""
+        return self._renderer.render_states([parse(s) for s in scenes])
+
+    # -- dynamics -----------------------------------------------------------------------------
+    def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:
+        """actions: int (B,) in [0, 6). Finished scenes come back unchanged."""
+        actions = np.asarray(actions)
+        assert actions.shape == (len(scenes),), f"actions must be (B,) ints, got {actions.shape}"
+        return [step_scene(s, a) for s, a in zip(scenes, actions.tolist(), strict=True)]
+
+    def done(self, scene: Scene) -> bool:
+        return parse(scene).done()
+
+    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+        """On the goal by the last state, and never on or next to a lava tile R' avoids."""
+        final = parse(scenes[-1])
+        if final.agent != final.goal:
+            return False
+        for slot in task.reward.avoid:
+            o = scenes[0].obj(slot)
+            if o.present:
+                cell = (int(o.pos[0]), int(o.pos[1]))
+                if any(parse(s).agent in tasks.neighbours(cell) for s in scenes):
+                    return False
+        return True
+
+    def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
+        """First action of a shortest plan (key, door, goal): int64, shape (). LEFT when
+        there is nothing left to do (finished, or no way to the goal)."""
+        p = plan(parse(scene))
+        return np.asarray(p[0] if p else LEFT, np.int64)  # () int64
+
+    # -- tasks --------------------------------------------------------------------------------
+    def train_task(self, seed: int = 0) -> Task:
+        return tasks.train_task(seed)
+
+    def test_task(self, shift: str, seed: int) -> Task:
+        return tasks.shifted_task(shift, seed)
+
+    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
+        return tasks.fresh_tasks(task, n, seed)
+
+    def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+        return tasks.placements(task, slot, demo)
