@@ -31,6 +31,7 @@ class LoopReport:
     """Everything one pass of the loop produced."""
 
     world: str
+    seed: int
     task: Task
     failed: bool
     rollout: Trajectory
@@ -49,7 +50,8 @@ class LoopReport:
         return {
             "world": self.world,
             "shift": self.task.shift,
-            "seed": self.task.seed,
+            "seed": self.seed,
+            "task_seed": self.task.seed,
             "instruction": self.task.reward.instruction,
             "failed": self.failed,
             "counterfactual": [c.edit.to_list() for c in self.search.counterfactuals]
@@ -82,7 +84,7 @@ def run_loop(
     rollout = world.rollout(task, policy)
     if observer:
         observer.on_rollout("failed", rollout)
-    report = LoopReport(world.name, task, user.judge(task, rollout), rollout)
+    report = LoopReport(world.name, seed, task, user.judge(task, rollout), rollout)
     if not report.failed:
         return report
 

@@ -96,7 +96,8 @@ def single_changes(space: ConceptSpace, scene: Scene) -> tuple[list[Change], lis
     Instantiation changes are offered for absent slots too (they matter combined with adding
     the object); `effective` tells whether an edit changes anything visible.
     """
-    presence, values = [], []
+    presence: list[Change] = []
+    values: list[Change] = []
     for s in space.slots:
         obj = scene.obj(s.name)
         if s.optional:

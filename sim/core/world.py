@@ -28,6 +28,7 @@ class World(abc.ABC):
         discrete: True when actions are integers in [0, action_dim).
         action_dim: continuous action size, or the number of discrete actions.
         epsilon: the search's per-step L1 bound on action distance (continuous worlds).
+        lossless_frames: record frames losslessly (small synthetic images) instead of JPEG.
     """
 
     name: str
@@ -37,6 +38,7 @@ class World(abc.ABC):
     discrete: bool
     action_dim: int
     epsilon: float = 0.0
+    lossless_frames: bool = False
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod

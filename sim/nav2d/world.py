@@ -54,6 +54,7 @@ class Nav2DWorld(World):
     discrete = False
     action_dim = 2
     epsilon = 0.2
+    lossless_frames = True
 
     # -- appearance ---------------------------------------------------------------------------
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:

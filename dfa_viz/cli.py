@@ -1,0 +1,132 @@
+"""The `dfa` command: run the loop, train base policies, benchmark, demo."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Annotated
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import tyro  # noqa: E402
+
+from sim.core import UserError  # noqa: E402
+
+
+def run(
+    world: str = "nav2d",
+    shift: str = "object_ti",
+    seed: int = 0,
+    json_out: Annotated[bool, tyro.conf.arg(name="json")] = False,
+    accuracy: float = 1.0,
+    label: tuple[str, ...] = (),
+    policy: Path | None = None,
+    demo: Path | None = None,
+    max_size: int = 2,
+    out: Path = Path("recordings"),
+) -> None:
+    """Run the whole DFA loop once with the simulated user and report what happened.
+
+    Rolls the base policy out on a failing test task of the chosen shift, takes a demonstration,
+    searches the smallest concept edit that makes the policy follow it, takes TI/TR feedback,
+    augments, finetunes and evaluates on 10 fresh tasks from the user's reward. Everything is
+    recorded to OUT/<world>-<shift>-seed<seed>.rrd.
+
+    Args:
+        world: nav2d, doorkey or tabletop.
+        shift: object_ti, object_tr, distractor_ti, distractor_tr or other.
+        seed: selects the test task; the same seed gives the same run.
+        json_out: print the report as one JSON object.
+        accuracy: probability that each simulated feedback label is right.
+        label: fixed answers, e.g. goal.colour=TR or distractor.presence=TI.
+        policy: a checkpoint folder (model.safetensors + config.json) instead of the base policy.
+        demo: a demonstration .npz (Trajectory) instead of the scripted expert's.
+        max_size: the largest edit the search tries.
+        out: folder for the recording.
+    """
+    from dfa_viz.session import run_once
+
+    report = run_once(
+        world,
+        shift,
+        seed,
+        accuracy=accuracy,
+        labels=label,
+        policy_dir=policy,
+        demo_path=demo,
+        max_size=max_size,
+        out=out,
+        progress=not json_out,
+    )
+    if json_out:
+        print(json.dumps(report.to_dict()))
+    else:
+        from dfa_viz.report import format_report
+
+        print(format_report(report))
+
+
+def train(worlds: tuple[str, ...] = ("nav2d",), seed: int = 0, retrain: bool = False) -> None:
+    """Train (or load from the cache) the base policy of each world.
+
+    Args:
+        worlds: which worlds.
+        seed: training seed.
+        retrain: ignore the cache and train again.
+    """
+    from dfa_viz.session import train_base
+
+    for name in worlds:
+        path, rate = train_base(name, seed=seed, retrain=retrain)
+        print(f"{name}: base policy at {path}; training-distribution success {rate:.0%}")
+
+
+def bench(worlds: tuple[str, ...] = ("nav2d",), repeats: int = 3) -> None:
+    """Measure the search against a naive loop, and a full `dfa run`, on this machine.
+
+    Args:
+        worlds: which worlds to measure.
+        repeats: timing repeats (the best is reported).
+    """
+    from dfa_viz.bench import run_bench
+
+    run_bench(worlds, repeats=repeats)
+
+
+def demo(world: str = "nav2d", shift: str = "distractor_ti", seed: int = 0) -> None:
+    """Run the loop on a default scenario and say where the recording is.
+
+    Args:
+        world: the world of the scenario.
+        shift: the shift of the scenario.
+        seed: the seed of the scenario.
+    """
+    from dfa_viz.report import format_report
+    from dfa_viz.session import run_once
+
+    report = run_once(world, shift, seed, out=Path("recordings"), progress=True)
+    print(format_report(report))
+    print(f"\nOpen the recording with: rerun {report.recording}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `dfa` console script; user errors print one line and exit 2."""
+    try:
+        tyro.extras.subcommand_cli_from_dict(
+            {"run": run, "train": train, "bench": bench, "demo": demo},
+            args=argv,
+            prog="dfa",
+        )
+    except UserError as e:
+        print(f"dfa: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("dfa: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

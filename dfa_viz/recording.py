@@ -1,0 +1,206 @@
+"""The Rerun recorder: one .rrd per run with every rollout, candidate, edit and curve."""
+
+from __future__ import annotations
+
+import uuid
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from search import Candidate, SearchResult
+from sim.core import Edit, Feedback, Task, Trajectory, World
+
+APP_ID = "dfa"
+ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
+JPEG_QUALITY = 90
+
+
+def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
+    """The same run always gets the same recording id (reproducible files)."""
+    return uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/{world}/{shift}/{seed}")
+
+
+def blueprint() -> rrb.Blueprint:
+    """Failed | demonstration | counterfactual | finetuned on one `step` timeline; the
+    action-distance plot beneath; edit, feedback, loss and success at the bottom."""
+    return rrb.Blueprint(
+        rrb.Vertical(
+            rrb.Horizontal(
+                *(rrb.Spatial2DView(origin=f"rollouts/{name}", name=name) for name in ROLLOUTS)
+            ),
+            rrb.Horizontal(
+                rrb.TimeSeriesView(origin="action_distance", name="action distance to the demo"),
+                rrb.TimeSeriesView(origin="search/candidates", name="every candidate tried"),
+            ),
+            rrb.Horizontal(
+                rrb.TextDocumentView(origin="edit", name="counterfactual edit"),
+                rrb.TextDocumentView(origin="feedback", name="feedback"),
+                rrb.TimeSeriesView(origin="finetune", name="finetuning loss"),
+                rrb.BarChartView(origin="evaluation", name="success before / after"),
+            ),
+            row_shares=[3, 2, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def edit_table(world: World, scene, edit: Edit) -> str:
+    """Markdown before -> after table of an edit's concepts."""
+    rows = ["| slot | concept | before | after |", "|---|---|---|---|"]
+    rows += [f"| {c.slot} | {c.concept} | {c.old} | {c.new} |" for c in edit.ordered]
+    return "\n".join(rows)
+
+
+class Recorder:
+    """Writes one run to `path` through an explicit RecordingStream (no global stream).
+
+    Implements the loop's observer methods; call `close()` to write the footer.
+    """
+
+    def __init__(self, path: str | Path, world: World, task: Task) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.world, self.task = world, task
+        self.rec = rr.RecordingStream(
+            APP_ID,
+            recording_id=recording_id(world.name, task.shift, task.seed),
+            send_properties=False,
+        )
+        self.rec.set_log_time_enabled(False)
+        self.rec.set_log_tick_enabled(False)
+        self.rec.save(self.path)
+        self.rec.send_blueprint(blueprint())
+        self.rec.send_property(
+            "task",
+            rr.AnyValues(
+                world=world.name,
+                shift=task.shift,
+                seed=task.seed,
+                instruction=task.reward.instruction,
+            ),
+        )
+        self._demo: Trajectory | None = None
+
+    # -- helpers ------------------------------------------------------------------------------
+    def _image(self, frame: np.ndarray):
+        img = rr.Image(frame)
+        return img if getattr(self.world, "lossless_frames", False) else img.compress(JPEG_QUALITY)
+
+    def _series(self, entity: str, steps: np.ndarray, values: np.ndarray, timeline: str = "step"):
+        keep = ~np.isnan(values)
+        if keep.any():
+            self.rec.send_columns(
+                entity,
+                indexes=[rr.TimeColumn(timeline, sequence=steps[keep])],
+                columns=rr.Scalars.columns(scalars=values[keep].astype(np.float64)),
+            )
+
+    def _distance_to_demo(self, traj: Trajectory) -> np.ndarray:
+        assert self._demo is not None
+        a, b = traj.actions, self._demo.actions
+        if self.world.discrete:
+            return (a != b).astype(np.float64)
+        return np.abs(a - b).sum(axis=1).astype(np.float64)  # (T,)
+
+    # -- observer -----------------------------------------------------------------------------
+    def on_rollout(self, name: str, traj: Trajectory) -> None:
+        self.rec.reset_time()
+        for t, frame in enumerate(traj.observations):
+            self.rec.set_time("step", sequence=t)
+            self.rec.log(f"rollouts/{name}/frame", self._image(frame))
+        actions = traj.actions.reshape(traj.horizon, -1).astype(np.float64)  # (T, A)
+        steps = np.arange(traj.horizon)
+        for k in range(actions.shape[1]):
+            self._series(f"rollouts/{name}/action/{k}", steps, actions[:, k])
+        self.rec.log(f"rollouts/{name}/success", rr.AnyValues(success=traj.success), static=True)
+        if name == "demonstration":
+            self._demo = traj
+        elif self._demo is not None and name in ("failed", "counterfactual", "finetuned"):
+            self._series(f"action_distance/{name}", steps, self._distance_to_demo(traj))
+        if name == "demonstration" and not self.world.discrete:
+            eps = np.full(traj.horizon, self.world.epsilon)
+            self._series("action_distance/epsilon", steps, eps)
+            self.rec.log(
+                "action_distance/epsilon",
+                rr.SeriesLines(names="epsilon", colors=[128, 128, 128]),
+                static=True,
+            )
+
+    def on_candidate(self, index: int, cand: Candidate) -> None:
+        entity = f"search/candidates/c{index:05d}"
+        self.rec.log(
+            entity,
+            rr.AnyValues(
+                edit=str(cand.edit),
+                size=cand.edit.size,
+                valid=cand.valid,
+                dropped_at=-1 if cand.dropped_at is None else cand.dropped_at,
+                total_distance=cand.total,
+            ),
+            static=True,
+        )
+        colour = [40, 200, 70] if cand.valid else [200, 60, 60]
+        self.rec.log(entity, rr.SeriesLines(names=str(cand.edit), colors=[colour]), static=True)
+        self._series(entity, np.arange(len(cand.distances)), cand.distances.astype(np.float64))
+
+    def on_search(self, result: SearchResult, counterfactual: Trajectory | None) -> None:
+        self.rec.log("search/summary", rr.TextDocument(result.summary()), static=True)
+        if result.best is None:
+            text = (
+                "**No counterfactual found** — the cause is outside the concept space "
+                f"(tried {len(result.tried)} edits of up to {result.max_size} changes)."
+            )
+            self.rec.log(
+                "edit/delta", rr.TextDocument(text, media_type="text/markdown"), static=True
+            )
+            return
+        lines = [edit_table(self.world, self.task.scene, result.best.edit)]
+        if len(result.counterfactuals) > 1:
+            lines.append(
+                "\nOther minimal edits (ties): "
+                + "; ".join(str(c.edit) for c in result.counterfactuals[1:])
+            )
+        self.rec.log(
+            "edit/delta", rr.TextDocument("\n".join(lines), media_type="text/markdown"), static=True
+        )
+        space = self.world.space
+        before = space.encode(self.task.scene).astype(np.float64)
+        after = space.encode(self.world.apply(self.task.scene, result.best.edit)).astype(np.float64)
+        self.rec.log("edit/phi_before", rr.BarChart(before), static=True)
+        self.rec.log("edit/phi_after", rr.BarChart(after), static=True)
+        if counterfactual is not None:
+            self.on_rollout("counterfactual", counterfactual)
+
+    def on_feedback(self, feedback: Feedback) -> None:
+        rows = ["| slot | concept | label | acceptable |", "|---|---|---|---|"]
+        rows += [
+            f"| {lab.slot} | {lab.concept} | {'TR' if lab.relevant else 'TI'} | {', '.join(lab.acceptable)} |"
+            for lab in feedback.labels
+        ]
+        self.rec.log(
+            "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
+        )
+
+    def on_augmented(self, trajectories: list[Trajectory]) -> None:
+        self.rec.reset_time()
+        for i, traj in enumerate(trajectories):
+            for t, frame in enumerate(traj.observations):
+                self.rec.set_time("step", sequence=t)
+                self.rec.log(f"augmented/a{i:03d}/frame", self._image(frame))
+
+    def on_loss(self, step: int, loss: float) -> None:
+        if step == 0:
+            self.rec.reset_time()
+        self.rec.set_time("finetune_step", sequence=step)
+        self.rec.log("finetune/loss", rr.Scalars(loss))
+
+    def on_evaluation(self, before: float, after: float) -> None:
+        self.rec.reset_time()
+        self.rec.log("evaluation/success", rr.BarChart(np.array([before, after])), static=True)
+        self.rec.log("evaluation/values", rr.AnyValues(before=before, after=after), static=True)
+
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()
