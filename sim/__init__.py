@@ -11,6 +11,11 @@ from sim.core.errors import UserError
 # world name -> (module:class of its World, gymnasium id, module:class of its env)
 WORLDS: dict[str, tuple[str, str, str]] = {
     "nav2d": ("sim.nav2d.world:Nav2DWorld", "dfa/Nav2D-v0", "sim.nav2d.env:Nav2DEnv"),
+    "tabletop": (
+        "sim.tabletop.world:TabletopWorld",
+        "dfa/Tabletop-v0",
+        "sim.tabletop.env:TabletopEnv",
+    ),
     "doorkey": ("sim.doorkey.world:DoorKeyWorld", "dfa/DoorKey-v0", "sim.doorkey.env:DoorKeyEnv"),
 }
 

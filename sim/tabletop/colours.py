@@ -48,9 +48,7 @@ COLOUR_PAIRS = tuple(
 
 
 def _combo(kind: str) -> tuple[str, ...]:
-    return tuple(
-        f"{dark}{a} and {b} {kind}" for a, b in COLOUR_PAIRS for dark in ("", "dark ")
-    )
+    return tuple(f"{dark}{a} and {b} {kind}" for a, b in COLOUR_PAIRS for dark in ("", "dark "))
 
 
 TEXTURES: tuple[str, ...] = (

@@ -219,6 +219,10 @@ def inertia(name: str, mass_kg: float) -> tuple[np.ndarray, np.ndarray]:
     """(centre of mass (3,), diagonal inertia (3,)) of a solid box the size of the shape."""
     lo, hi = shape_mesh(name).bounds
     ex = hi - lo
-    diag = mass_kg / 12 * np.array([ex[1] ** 2 + ex[2] ** 2, ex[0] ** 2 + ex[2] ** 2, ex[0] ** 2 + ex[1] ** 2])
+    diag = (
+        mass_kg
+        / 12
+        * np.array([ex[1] ** 2 + ex[2] ** 2, ex[0] ** 2 + ex[2] ** 2, ex[0] ** 2 + ex[1] ** 2])
+    )
     com = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 0.4 * ex[2]])
     return com, diag

@@ -13,30 +13,25 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from dataclasses import dataclass  # noqa: E402
+from dataclasses import dataclass
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
+import numpy as np
 
-from sim.core import Scene  # noqa: E402
-from sim.tabletop import colours as C  # noqa: E402
-from sim.tabletop import meshes as M  # noqa: E402
-from sim.tabletop import textures as T  # noqa: E402
-from sim.tabletop.shapes import SHAPES  # noqa: E402
+from sim.core import Scene
+from sim.tabletop import colours as C
+from sim.tabletop import meshes as M
+from sim.tabletop import textures as T
+from sim.tabletop.catalogue import SHAPES
+from sim.tabletop.pose import TABLE_HALF_M, TABLE_THICKNESS_M
+from sim.tabletop.tasks import VIEW_HALF_M
 
 SLOTS = ("object", "goal", "distractor0", "distractor1")
-VIEW_HALF_M = 0.4  # the camera sees the table square [-0.4, 0.4]^2
-TABLE_HALF_M = 0.6  # the table top is [-0.6, 0.6]^2 at z = 0
 OBJECT_MASS_KG = 0.1
 GROUP_SHOWN, GROUP_HIDDEN, GROUP_COLLISION = 0, 1, 3
 AMBIENT = 0.6  # headlight ambient + diffuse = 1: a face seen head-on shows its exact colour
 TIMESTEP_S = 0.004
 PARK_M = 5.0  # absent objects wait this far off the table, without contacts
-
-
-def identity_pose(x: float, y: float) -> tuple[float, ...]:
-    """Obj.pos of an upright object resting on the table at (x, y): (x, y, z, qw, qx, qy, qz)."""
-    return (float(x), float(y), 0.0, 1.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -192,8 +187,8 @@ def build_spec() -> mujoco.MjSpec:
     wb.add_geom(
         name="table",
         type=mujoco.mjtGeom.mjGEOM_BOX,
-        size=[TABLE_HALF_M, TABLE_HALF_M, 0.02],
-        pos=[0.0, 0.0, -0.02],
+        size=[TABLE_HALF_M, TABLE_HALF_M, TABLE_THICKNESS_M / 2],
+        pos=[0.0, 0.0, -TABLE_THICKNESS_M / 2],
         material="mat:table",
         group=GROUP_SHOWN,
     )
@@ -236,7 +231,9 @@ class Table:
         self.shape_index = {n: i for i, n in enumerate(SHAPES)}
         self.collision: list[CollisionSet] = []
         for name in SHAPES:
-            ids = np.array([gid(f"lib:{name}:{i}") for i in range(max(1, len(M.collision_prims(name))))])
+            ids = np.array(
+                [gid(f"lib:{name}:{i}") for i in range(max(1, len(M.collision_prims(name))))]
+            )
             self.collision.append(
                 CollisionSet(
                     m.geom_type[ids].copy(),

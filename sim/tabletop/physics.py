@@ -15,7 +15,8 @@ import numpy as np
 
 from sim.core import Obj, Scene
 from sim.tabletop import meshes as M
-from sim.tabletop.model import SLOTS, TIMESTEP_S, VIEW_HALF_M, Table
+from sim.tabletop.model import SLOTS, TIMESTEP_S, Table
+from sim.tabletop.tasks import VIEW_HALF_M
 
 CARRY_Z_M = 0.12  # the gripper carries objects with their origin this high above the table
 LIFT_SPEED = 1.0  # m/s
@@ -101,7 +102,8 @@ class PickPlace:
     def _still(self, slots: list[str]) -> bool:
         d = self.table.data
         return all(
-            np.max(np.abs(d.qvel[self.table.slots[s].dof : self.table.slots[s].dof + 6])) < STILL_SPEED
+            np.max(np.abs(d.qvel[self.table.slots[s].dof : self.table.slots[s].dof + 6]))
+            < STILL_SPEED
             for s in slots
         )
 
@@ -114,7 +116,7 @@ class PickPlace:
         Returns the scene after settling (agent = (1.0,)) and the recorded frames.
         """
         a = np.clip(np.asarray(action, float).reshape(4), -VIEW_HALF_M, VIEW_HALF_M)
-        m, d = self.table.model, self.table.data
+        d = self.table.data
         present = self._present(scene)
         picked = object_at(scene, a[:2])
         rec: list[tuple[float, np.ndarray, np.ndarray]] = []
@@ -146,7 +148,9 @@ class PickPlace:
             np.stack([r[2] for r in rec]).reshape(len(rec), len(present), 4),
             picked,
         )
-        return Scene(scene.world, tuple(objs), (scene.agent[0] + 1.0 if scene.agent else 1.0,)), frames
+        return Scene(
+            scene.world, tuple(objs), (scene.agent[0] + 1.0 if scene.agent else 1.0,)
+        ), frames
 
     def _carry(self, slot: str, a: np.ndarray, present: list[str], every: int, record) -> None:
         m, d = self.table.model, self.table.data

@@ -6,13 +6,13 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from collections.abc import Sequence  # noqa: E402
+from collections.abc import Sequence
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import mujoco
+import numpy as np
 
-from sim.core import Scene  # noqa: E402
-from sim.tabletop.model import GROUP_SHOWN, Table  # noqa: E402
+from sim.core import Scene
+from sim.tabletop.model import GROUP_SHOWN, Table
 
 SIZE_PX = 80
 

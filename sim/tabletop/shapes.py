@@ -12,40 +12,9 @@ from shapely import affinity
 from shapely.geometry import LineString, Point, Polygon, box
 from shapely.ops import unary_union
 
-SHAPES: tuple[str, ...] = (
-    "letter A",
-    "letter E",
-    "letter G",
-    "letter M",
-    "letter R",
-    "letter T",
-    "letter V",
-    "cross",
-    "diamond",
-    "triangle",
-    "flower",
-    "heart",
-    "hexagon",
-    "pentagon",
-    "star",
-    "ring",
-    "round",
-    "L-shaped block",
-    "block",
-    "shorter block",
-    "small block",
-    "line",
-    "container",
-    "square",
-    "three-sided rectangle",
-    "bowl",
-    "pallet",
-    "frame",
-    "pan",
-)
-# The shapes a manipulated object takes: the first 19 (letters .. L-shaped block, and block).
-MANIPULATED: tuple[str, ...] = SHAPES[:19]
-GOALS: tuple[str, ...] = ("bowl", "frame", "square", "container", "pallet", "pan")
+from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
+
+__all__ = ["GOALS", "MANIPULATED", "SHAPES", "kit_outline", "outline"]
 
 KIT_HEIGHT_M = 0.03  # thickness of the extruded kit shapes (letters .. L-shaped block)
 # Largest footprint extent of each kit shape (VIMA: 0.08 m scaled by 1.6 or 1.8).
@@ -136,7 +105,10 @@ def _letter(c: str) -> Polygon:
 def _regular(n: int, r: float = 0.5, rot_deg: float = 90.0) -> Polygon:
     return Polygon(
         [
-            (r * math.cos(math.radians(rot_deg + 360 * i / n)), r * math.sin(math.radians(rot_deg + 360 * i / n)))
+            (
+                r * math.cos(math.radians(rot_deg + 360 * i / n)),
+                r * math.sin(math.radians(rot_deg + 360 * i / n)),
+            )
             for i in range(n)
         ]
     )
@@ -153,7 +125,10 @@ def _kit_unit(name: str) -> Polygon:
     if name == "triangle":
         return _regular(3)
     if name == "flower":
-        petals = [Point(0.27 * math.cos(a), 0.27 * math.sin(a)).buffer(0.23, 8) for a in (0, 1.5708, 3.1416, 4.7124)]
+        petals = [
+            Point(0.27 * math.cos(a), 0.27 * math.sin(a)).buffer(0.23, 8)
+            for a in (0, 1.5708, 3.1416, 4.7124)
+        ]
         return unary_union([*petals, Point(0, 0).buffer(0.25, 8)])
     if name == "heart":
         ts = [2 * math.pi * i / 96 for i in range(96)]

@@ -109,13 +109,18 @@ def _pattern(name: str) -> np.ndarray:
         a = rgb[words[0]]
         out = np.empty((TEX_PX, TEX_PX, 3))
         out[:] = a
-        for cx, cy, rot in ((0.28, 0.3, 0.6), (0.75, 0.72, 3.7), (0.78, 0.22, 2.1), (0.25, 0.8, 5.0)):
+        for cx, cy, rot in (
+            (0.28, 0.3, 0.6),
+            (0.75, 0.72, 3.7),
+            (0.78, 0.22, 2.1),
+            (0.25, 0.8, 5.0),
+        ):
             dx = (_u - cx + 0.5) % 1.0 - 0.5
             dy = (_v - cy + 0.5) % 1.0 - 0.5
             x = dx * np.cos(rot) + dy * np.sin(rot)
             y = -dx * np.sin(rot) + dy * np.cos(rot)
             r = np.hypot(x, y)
-            drop = r < 0.17 * (0.6 + 0.4 * np.cos(np.arctan2(y, x)))
+            drop = r < 0.21 * (0.6 + 0.4 * np.cos(np.arctan2(y, x)))
             out = _mix(drop, _lighter(a, 0.6), out)
             out = _mix(r < 0.05, np.asarray(a) * 0.55, out)
         return out
@@ -137,5 +142,5 @@ def mean_rgb(name: str) -> tuple[int, int, int]:
     """The mean colour of an appearance (its plain RGB, or its texture's average)."""
     if name in PLAIN_RGB:
         return PLAIN_RGB[name]
-    m = texture(name).reshape(-1, 3).mean(axis=0)
-    return (int(round(m[0])), int(round(m[1])), int(round(m[2])))
+    r, g, b = np.rint(texture(name).reshape(-1, 3).mean(axis=0)).astype(int).tolist()
+    return (r, g, b)

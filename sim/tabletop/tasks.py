@@ -1,0 +1,267 @@
+"""Tabletop tasks: the training task, the five shifts, fresh tasks from R', and placements.
+
+Pure Python on scenes (no MuJoCo). Objects sit at the centres of five areas of the table
+(four quadrants and the centre), upright, rotation 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from sim.core import (
+    ABSENT,
+    PRESENCE,
+    PRESENT,
+    Concept,
+    ConceptSpace,
+    Obj,
+    Reward,
+    Scene,
+    Slot,
+    Task,
+    Trajectory,
+    check_shift,
+)
+from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
+
+WORLD = "tabletop"
+VIEW_HALF_M = 0.4  # the camera sees, and actions address, the table square [-0.4, 0.4]^2
+AREA_M = 0.23  # quadrant centres are at (+-AREA_M, +-AREA_M)
+AREAS: dict[str, tuple[float, float]] = {
+    "top-left": (-AREA_M, AREA_M),
+    "top-right": (AREA_M, AREA_M),
+    "bottom-left": (-AREA_M, -AREA_M),
+    "bottom-right": (AREA_M, -AREA_M),
+    "centre": (0.0, 0.0),
+}
+OBJECT_AREA, GOAL_AREA = "top-left", "bottom-right"
+TRAIN_OBJECT = ("flower", "red")  # (shape, colour)
+TRAIN_GOAL = ("pan", "blue")
+DISTRACTORS = ("distractor0", "distractor1")
+CLEAR_M = 0.15  # an added distractor keeps this far from every object and pick/place point
+SUCCESS = "on_goal"
+
+
+def space(colours: Sequence[str]) -> ConceptSpace:
+    """Phi's codomain: every slot offers all 29 shapes and the configured colours."""
+    shape, colour = Concept("shape", SHAPES), Concept("colour", tuple(colours))
+    return ConceptSpace(
+        (
+            Slot("object", (shape, colour)),
+            Slot("goal", (shape, colour)),
+            *(Slot(d, (shape, colour), optional=True) for d in DISTRACTORS),
+        )
+    )
+
+
+def pose(area_or_xy) -> tuple[float, ...]:
+    """Obj.pos of an upright object resting on the table: (x, y, z, qw, qx, qy, qz), metres."""
+    x, y = AREAS[area_or_xy] if isinstance(area_or_xy, str) else area_or_xy
+    return (float(x), float(y), 0.0, 1.0, 0.0, 0.0, 0.0)
+
+
+def _obj(slot: str, present: bool, look: tuple[str, str], area) -> Obj:
+    return Obj(slot, present, (("shape", look[0]), ("colour", look[1])), pose(area))
+
+
+def make_scene(
+    obj: tuple[str, str] = TRAIN_OBJECT,
+    goal: tuple[str, str] = TRAIN_GOAL,
+    *,
+    obj_area: str = OBJECT_AREA,
+    goal_area: str = GOAL_AREA,
+    distractors: Sequence[tuple[str, str, str]] = (),
+) -> Scene:
+    """A scene before the primitive (agent = (0.0,): no step taken).
+
+    distractors: (shape, colour, area) for distractor0, distractor1 in order; absent slots take
+    the object's appearance at the centre as their latent values.
+    """
+    objs = [_obj("object", True, obj, obj_area), _obj("goal", True, goal, goal_area)]
+    for i, slot in enumerate(DISTRACTORS):
+        if i < len(distractors):
+            shape, colour, area = distractors[i]
+            objs.append(_obj(slot, True, (shape, colour), area))
+        else:
+            objs.append(_obj(slot, False, obj, "centre"))
+    return Scene(WORLD, tuple(objs), (0.0,))
+
+
+def _describe(look: tuple[str, str]) -> str:
+    return f"{look[1]} {look[0]}"
+
+
+def train_reward() -> Reward:
+    o, g = TRAIN_OBJECT, TRAIN_GOAL
+    return Reward(
+        f"put the {_describe(o)} on the {_describe(g)}",
+        frozenset(
+            {("object", "shape"), ("object", "colour"), ("goal", "shape"), ("goal", "colour")}
+        ),
+        (
+            ("object", "shape", (o[0],)),
+            ("object", "colour", (o[1],)),
+            ("goal", "shape", (g[0],)),
+            ("goal", "colour", (g[1],)),
+        ),
+        success=SUCCESS,
+    )
+
+
+def train_task(seed: int = 0) -> Task:
+    """Fixed shapes and colours: the object top-left, the goal bottom-right, no distractor."""
+    return Task(WORLD, make_scene(), train_reward(), "train", seed)
+
+
+def _pick(rng: np.random.Generator, values: Sequence[str], exclude: Sequence[str] = ()) -> str:
+    pool = [v for v in values if v not in exclude]
+    return str(pool[rng.integers(len(pool))])
+
+
+def _object_shift(shift: str, seed: int, rng, colours: Sequence[str]) -> Task:
+    looks = {"object": list(TRAIN_OBJECT), "goal": list(TRAIN_GOAL)}
+    slot = ("object", "goal")[rng.integers(2)]
+    concept = ("shape", "colour")[rng.integers(2)]
+    k = 0 if concept == "shape" else 1
+    options = colours if concept == "colour" else (MANIPULATED if slot == "object" else GOALS)
+    looks[slot][k] = _pick(rng, options, exclude=[looks[slot][k]])
+    o, g = tuple(looks["object"]), tuple(looks["goal"])
+    allowed = [
+        ("object", "shape", (o[0],)),
+        ("object", "colour", (o[1],)),
+        ("goal", "shape", (g[0],)),
+        ("goal", "colour", (g[1],)),
+    ]
+    relevant = {(s, c) for s, c, _ in allowed}
+    if shift == "object_ti":
+        i = [(s, c) for s, c, _ in allowed].index((slot, concept))
+        allowed[i] = (slot, concept, tuple(options))
+        relevant.discard((slot, concept))
+        desc = {"object": _describe(o), "goal": _describe(g)}
+        look = o if slot == "object" else g
+        desc[slot] = f"{look[1]} {slot}" if concept == "shape" else look[0]
+        text = f"put the {desc['object']} on the {desc['goal']}, whatever the {slot}'s {concept}"
+    else:
+        text = f"put the {_describe(o)} on the {_describe(g)}"
+    reward = Reward(text, frozenset(relevant), tuple(allowed), success=SUCCESS)
+    return Task(WORLD, make_scene(o, g), reward, shift, seed, (slot, concept))
+
+
+def _distractor_shift(shift: str, seed: int, rng, colours: Sequence[str]) -> Task:
+    n = 1 + int(rng.random() < 0.5)
+    areas = [a for a in AREAS if a not in (OBJECT_AREA, GOAL_AREA)]
+    chosen = [areas[i] for i in rng.permutation(len(areas))[:n]]
+    shapes = [s for s in SHAPES if s not in (TRAIN_OBJECT[0], TRAIN_GOAL[0])]
+    cols = [c for c in colours if c not in (TRAIN_OBJECT[1], TRAIN_GOAL[1])]
+    ds = [(_pick(rng, shapes), _pick(rng, cols), area) for area in chosen]
+    scene = make_scene(distractors=ds)
+    base = train_reward()
+    if shift == "distractor_ti":
+        allowed = list(base.allowed)
+        for slot in DISTRACTORS:
+            allowed += [
+                (slot, PRESENCE, (PRESENT, ABSENT)),
+                (slot, "shape", tuple(shapes)),
+                (slot, "colour", tuple(cols)),
+            ]
+        reward = Reward(
+            base.instruction + ", whatever else is on the table",
+            base.relevant,
+            tuple(allowed),
+            success=SUCCESS,
+        )
+    else:
+        slots = DISTRACTORS[:n]
+        allowed = list(base.allowed)
+        for slot, (shape, colour, _) in zip(slots, ds, strict=True):
+            allowed += [
+                (slot, PRESENCE, (PRESENT,)),
+                (slot, "shape", (shape,)),
+                (slot, "colour", (colour,)),
+            ]
+        names = " and the ".join(_describe(d[:2]) for d in ds)
+        reward = Reward(
+            base.instruction + f" without touching the {names}",
+            base.relevant | {(s, c) for s in slots for c in (PRESENCE, "shape", "colour")},
+            tuple(allowed),
+            success=SUCCESS,
+            avoid=slots,
+        )
+    return Task(WORLD, scene, reward, shift, seed, ("distractor0", PRESENCE))
+
+
+def test_task(shift: str, seed: int, colours: Sequence[str]) -> Task:
+    """A shifted task (sim.core.task.SHIFTS); the same (shift, seed) gives the same task."""
+    check_shift(shift)
+    rng = np.random.default_rng([seed, 7])
+    if shift.startswith("object"):
+        return _object_shift(shift, seed, rng, colours)
+    if shift.startswith("distractor"):
+        return _distractor_shift(shift, seed, rng, colours)
+    # other: the object or the goal moves to another area; no concept edit explains it
+    free = [a for a in AREAS if a not in (OBJECT_AREA, GOAL_AREA)]
+    area = free[rng.integers(len(free))]
+    moved = "object" if rng.integers(2) == 0 else "goal"
+    scene = make_scene(obj_area=area) if moved == "object" else make_scene(goal_area=area)
+    base = train_reward()
+    reward = Reward(
+        base.instruction + ", wherever they are", base.relevant, base.allowed, success=SUCCESS
+    )
+    return Task(WORLD, scene, reward, shift, seed)
+
+
+def _area_of(obj: Obj) -> str:
+    for name, (x, y) in AREAS.items():
+        if abs(obj.pos[0] - x) < 1e-6 and abs(obj.pos[1] - y) < 1e-6:
+            return name
+    raise ValueError(f"{obj.slot} is not at an area centre: {obj.pos[:2]}")
+
+
+def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
+    """n tasks drawn from R': each open (slot, concept) from its allowed values; present
+    distractors in random free areas; for `other`, the object and goal in random areas."""
+    rng = np.random.default_rng([seed, 3])
+    out = []
+    for i in range(n):
+        scene = task.scene
+        for slot, concept, values in task.reward.allowed:
+            v = str(values[rng.integers(len(values))])
+            o = scene.obj(slot)
+            if concept == PRESENCE:
+                o = Obj(o.slot, v == PRESENT, o.values, o.pos)
+            else:
+                o = o.with_value(concept, v)
+            scene = scene.with_obj(o)
+        areas = list(AREAS)
+        if task.shift == "other":
+            order = rng.permutation(len(areas))
+            oa, ga = areas[order[0]], areas[order[1]]
+        else:
+            oa, ga = _area_of(scene.obj("object")), _area_of(scene.obj("goal"))
+        for slot, area in (("object", oa), ("goal", ga)):
+            scene = scene.with_obj(Obj(slot, True, scene.obj(slot).values, pose(area)))
+        free = [a for a in areas if a not in (oa, ga)]
+        order = rng.permutation(len(free))
+        for j, slot in enumerate(DISTRACTORS):
+            d = scene.obj(slot)
+            if d.present:
+                scene = scene.with_obj(Obj(slot, True, d.values, pose(free[order[j]])))
+        out.append(Task(WORLD, scene, task.reward, task.shift, seed * 1000 + i, task.cause))
+    return out
+
+
+def placements(task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+    """Area poses where `slot` can be added to every scene of the demonstration: at least
+    CLEAR_M from every other present object in any of its scenes and from every pick and
+    place point of its actions."""
+    points = [o.pos[:2] for s in demo.scenes for o in s.objects if o.present and o.slot != slot]
+    for a in np.asarray(demo.actions, float).reshape(-1, 4):
+        points += [tuple(a[:2]), tuple(a[2:])]
+    pts = np.array(points, float).reshape(-1, 2)
+    out = []
+    for xy in AREAS.values():
+        if len(pts) == 0 or np.min(np.hypot(*(pts - np.array(xy)).T)) >= CLEAR_M:
+            out.append(pose(xy))
+    return out

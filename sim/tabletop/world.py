@@ -1,0 +1,133 @@
+"""The tabletop world: "put the <object> on the <goal>" with one simulated pick-and-place.
+
+Scene layout: slots object, goal, distractor0, distractor1 (the distractors optional), each with
+shape (29) and colour (the configured appearances, 81 by default). Obj.pos is the object's pose
+on the table, (x, y, z, qw, qx, qy, qz) in metres, z = 0 resting on the table top; it is not part
+of Phi. agent = (steps taken,): (0.0,) before the primitive, (1.0,) after it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+
+import numpy as np
+
+from sim.core import Reward, Scene, Task, Trajectory, World
+from sim.tabletop import tasks as TK
+from sim.tabletop.colours import ALL_COLOURS, DEFAULT_COLOURS
+
+HORIZON = 1
+SUCCESS_RADIUS_M = 0.10  # the object's centre within this of the goal's after settling
+AVOID_MOVE_M = 0.02  # an avoided distractor may not move further than this
+
+
+def _dist_xy(a: Sequence[float], b: Sequence[float]) -> float:
+    return float(np.hypot(a[0] - b[0], a[1] - b[1]))
+
+
+class TabletopWorld(World):
+    """One primitive per episode: action float32 (4,) = (pick_x, pick_y, place_x, place_y) m.
+
+    colours: the colour concept's instantiations (any of sim.tabletop.colours.ALL_COLOURS).
+    MuJoCo is loaded on the first render or step; one model and one GL context serve every
+    scene, guarded by a lock (the model is edited in place per scene).
+    """
+
+    name = "tabletop"
+    horizon = HORIZON
+    obs_shape = (80, 80, 3)
+    discrete = False
+    action_dim = 4
+    epsilon = 0.06
+
+    def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
+        unknown = [c for c in colours if c not in ALL_COLOURS]
+        assert not unknown, f"unknown colours {unknown}; accepted: {', '.join(ALL_COLOURS)}"
+        assert len(set(colours)) == len(colours) >= 2, "colours must be distinct, at least 2"
+        for needed in (TK.TRAIN_OBJECT[1], TK.TRAIN_GOAL[1]):
+            assert needed in colours, f"colours must include the training colour {needed!r}"
+        self.colours = tuple(colours)
+        self.space = TK.space(self.colours)
+        self._lock = threading.RLock()
+        self._sim = None  # (Table, TopCamera, PickPlace), built on first use
+
+    # -- MuJoCo, lazily -----------------------------------------------------------------------
+    def _parts(self):
+        with self._lock:
+            if self._sim is None:
+                from sim.tabletop.model import Table
+                from sim.tabletop.physics import PickPlace
+                from sim.tabletop.render import TopCamera
+
+                table = Table()
+                self._sim = (table, TopCamera(table), PickPlace(table))
+            return self._sim
+
+    # -- appearance ---------------------------------------------------------------------------
+    def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
+        """uint8 (B, 80, 80, 3), the top camera's view of each scene."""
+        with self._lock:
+            return self._parts()[1].render_batch(scenes)
+
+    # -- dynamics -----------------------------------------------------------------------------
+    def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:
+        actions = np.asarray(actions, np.float64)
+        assert actions.shape == (len(scenes), 4), f"actions must be (B, 4), got {actions.shape}"
+        out = []
+        with self._lock:
+            pp = self._parts()[2]
+            for s, a in zip(scenes, actions, strict=True):
+                out.append(s if self.done(s) else pp.run(s, a)[0])
+        return out
+
+    def step_with_frames(self, scene: Scene, action: np.ndarray, *, every: int = 5):
+        """One primitive with the objects' poses recorded every `every` physics steps.
+
+        Returns (physics.Frames, scene after settling).
+        """
+        with self._lock:
+            after, frames = self._parts()[2].run(scene, np.asarray(action, float), every=every)
+        return frames, after
+
+    def done(self, scene: Scene) -> bool:
+        return bool(scene.agent) and scene.agent[0] >= HORIZON
+
+    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+        return on_goal(task.reward, scenes)
+
+    def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
+        """Pick at the object's centre, place at the goal's centre."""
+        o, g = scene.obj("object").pos, scene.obj("goal").pos
+        return np.array([o[0], o[1], g[0], g[1]], np.float32)
+
+    # -- tasks --------------------------------------------------------------------------------
+    def train_task(self, seed: int = 0) -> Task:
+        return TK.train_task(seed)
+
+    def test_task(self, shift: str, seed: int) -> Task:
+        return TK.test_task(shift, seed, self.colours)
+
+    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
+        return TK.fresh_tasks(task, n, seed)
+
+    def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+        return TK.placements(task, slot, demo)
+
+
+def on_goal(reward: Reward, scenes: Sequence[Scene]) -> bool:
+    """R' on a rollout: after the last scene the object's centre is within SUCCESS_RADIUS_M of
+    the goal's, no present distractor's centre is, and every avoided distractor stayed put."""
+    first, final = scenes[0], scenes[-1]
+    goal = final.obj("goal").pos
+    if _dist_xy(final.obj("object").pos, goal) >= SUCCESS_RADIUS_M:
+        return False
+    for slot in TK.DISTRACTORS:
+        d = final.obj(slot)
+        if d.present and _dist_xy(d.pos, goal) < SUCCESS_RADIUS_M:
+            return False
+    for slot in reward.avoid:
+        d0, d1 = first.obj(slot), final.obj(slot)
+        if d0.present and _dist_xy(d0.pos, d1.pos) > AVOID_MOVE_M:
+            return False
+    return True
