@@ -36,8 +36,9 @@ class SearchConfig:
 class SearchResult:
     """What the search found.
 
-    counterfactuals: every valid edit of the smallest size that has one, ranked by total
-        action distance (best first); empty when there is no counterfactual.
+    counterfactuals: every valid edit of the smallest size that has one, ranked presence
+        changes first (an object that should not be there explains more than its looks), then
+        by total action distance; empty when there is no counterfactual.
     tried: every candidate rolled out, in the order tried.
     size: the size of the counterfactuals, or None.
     """
@@ -110,6 +111,8 @@ def counterfactual_search(
             if valid and config.first_only:
                 break
         if valid:
-            ranked = tuple(sorted(valid, key=lambda c: (c.total, str(c.edit))))
+            ranked = tuple(
+                sorted(valid, key=lambda c: (not c.edit.is_presence, c.total, str(c.edit)))
+            )
             return SearchResult(ranked, tuple(tried), size, config.max_size)
     return SearchResult((), tuple(tried), None, config.max_size)

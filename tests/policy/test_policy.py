@@ -1,0 +1,89 @@
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from policy import augment, evaluate, failing_test_task, load_policy, save_policy
+from policy.model import ImagePolicy, Policy, PolicyConfig
+from sim.core import SHIFTS, Feedback, Label, UserError
+
+
+def test_checkpoint_round_trip_is_bit_exact(nav, nav_policy, tmp_path):
+    save_policy(nav_policy, tmp_path / "ckpt")
+    back = load_policy(tmp_path / "ckpt", world="nav2d")
+    for (k, a), (k2, b) in zip(
+        nav_policy.net.state_dict().items(), back.net.state_dict().items(), strict=True
+    ):
+        assert k == k2 and torch.equal(a, b)
+    obs = nav.demonstrate(nav.train_task()).observations
+    assert np.array_equal(nav_policy(obs), back(obs))
+
+
+def test_checkpoint_of_the_wrong_shape_is_refused(tmp_path):
+    small = Policy(ImagePolicy(PolicyConfig("nav2d", (36, 36, 3), 2, False, hidden=50)))
+    save_policy(small, tmp_path / "ckpt")
+    cfg = json.loads((tmp_path / "ckpt" / "config.json").read_text())
+    cfg["policy"]["hidden"] = 100
+    (tmp_path / "ckpt" / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(UserError, match=r"has shape \(50,?\), expected \(100,?\)"):
+        load_policy(tmp_path / "ckpt")
+    with pytest.raises(UserError, match="for world 'nav2d', not 'doorkey'"):
+        load_policy(tmp_path / "ckpt", world="doorkey")
+    with pytest.raises(UserError, match="missing config.json"):
+        load_policy(tmp_path)
+
+
+def test_base_policy_solves_the_training_distribution(nav, nav_policy):
+    wins = sum(nav.rollout(nav.train_task(seed), nav_policy).success for seed in range(10))
+    assert wins >= 9
+
+
+@pytest.mark.parametrize("shift", SHIFTS)
+def test_base_policy_fails_on_shifted_tasks(nav, nav_policy, shift):
+    for seed in range(3):
+        task, rollout = failing_test_task(nav, nav_policy, shift, seed)
+        assert task.shift == shift and not rollout.success
+        assert nav.demonstrate(task).success  # the expert can do it: the policy is what fails
+
+
+def test_augmentation_rerenders_every_state_and_keeps_actions(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    demo = nav.demonstrate(task)
+    slot, concept = task.cause
+    values = nav.space.slot(slot).concept(concept).values
+    aug = augment(nav, task, demo, Feedback((Label(slot, concept, False, values),)))
+    assert len(aug) == len(values) - 1
+    seen = {a.scenes[0].obj(slot).value(concept) for a in aug}
+    assert seen == set(values) - {task.scene.obj(slot).value(concept)}
+    for a in aug:
+        assert np.array_equal(a.actions, demo.actions)
+        assert all(s.obj(slot).value(concept) in seen for s in a.scenes)
+        assert np.array_equal(a.observations, nav.render_batch(a.scenes))
+
+
+def test_distractor_augmentation_places_it_off_the_path(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 0)
+    demo = nav.demonstrate(task)
+    aug = augment(
+        nav, task, demo, Feedback((Label("distractor", "presence", False, ("present", "absent")),))
+    )
+    places = nav.placements(task, "distractor", demo)
+    assert (
+        places and len(aug) == 16 * len(places) + 1 - 1
+    )  # every look at every place, minus itself, plus absent
+    for a in aug:
+        d = a.scenes[0].obj("distractor")
+        assert not d.present or d.pos in places
+
+
+def test_tr_feedback_adds_nothing(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "object_tr", 0)
+    demo = nav.demonstrate(task)
+    slot, concept = task.cause
+    assert augment(nav, task, demo, Feedback((Label(slot, concept, True),))) == []
+
+
+def test_evaluation_is_seeded(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 1)
+    assert evaluate(nav, nav_policy, task, seed=4) == evaluate(nav, nav_policy, task, seed=4)

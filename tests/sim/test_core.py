@@ -1,0 +1,59 @@
+import numpy as np
+import pytest
+
+from sim.core import ABSENT, PRESENCE, PRESENT, Change, Edit, Scene, Trajectory, UserError
+
+
+def test_phi_encode_decode_round_trips_every_single_edit(nav):
+    task = nav.test_task("distractor_ti", 0)
+    for edit in [
+        Edit.of(c)
+        for cs in __import__("sim.core", fromlist=["x"]).single_changes(nav.space, task.scene)
+        for c in cs
+    ]:
+        scene = nav.apply(task.scene, edit)
+        phi = nav.space.encode(scene)
+        assert phi.shape == (nav.space.dim,) and phi.dtype == np.uint8
+        assert nav.space.decode(phi, scene) == scene
+        # one-hot per concept of each present slot, zeros for absent ones
+        assert phi.sum() == 2 * sum(o.present for o in scene.objects)
+
+
+def test_apply_checks_old_values_and_names(nav):
+    scene = nav.train_task().scene
+    with pytest.raises(UserError, match="unknown slot 'wall'"):
+        nav.apply(scene, Edit.of(Change("wall", "colour", "red", "blue")))
+    with pytest.raises(UserError, match="unknown colour 'mauve'"):
+        nav.apply(scene, Edit.of(Change("goal", "colour", "red", "mauve")))
+    with pytest.raises(UserError, match="unknown concept 'size'"):
+        nav.apply(scene, Edit.of(Change("goal", "size", "big", "small")))
+    with pytest.raises(UserError, match="is 'red'"):
+        nav.apply(scene, Edit.of(Change("goal", "colour", "blue", "green")))
+    added = nav.apply(scene, Edit.of(Change("distractor", PRESENCE, ABSENT, PRESENT)))
+    assert added.obj("distractor").present and not scene.obj("distractor").present
+
+
+def test_scene_json_round_trip_is_exact(nav):
+    scene = nav.test_task("distractor_tr", 3).scene
+    assert Scene.from_dict(scene.to_dict()) == scene
+    with pytest.raises(UserError, match="malformed scene"):
+        Scene.from_dict({"world": "nav2d"})
+
+
+def test_trajectory_npz_round_trip_is_bit_exact(nav, tmp_path):
+    demo = nav.demonstrate(nav.test_task("object_ti", 1))
+    path = demo.save(tmp_path / "demo.npz")
+    back = Trajectory.load(path)
+    assert back.equals(demo)
+    assert back.actions.dtype == demo.actions.dtype == np.float32
+
+
+def test_malformed_trajectory_files_say_what_is_wrong(tmp_path):
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    with pytest.raises(UserError, match="not a readable trajectory"):
+        Trajectory.load(bad)
+    partial = tmp_path / "partial.npz"
+    np.savez(partial, actions=np.zeros((3, 2)))
+    with pytest.raises(UserError, match="missing"):
+        Trajectory.load(partial)

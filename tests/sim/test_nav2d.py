@@ -1,0 +1,67 @@
+import gymnasium
+import numpy as np
+from gymnasium.utils.env_checker import check_env
+
+from sim.core import SHIFTS
+
+
+def test_check_env_passes():
+    env = gymnasium.make("dfa/Nav2D-v0")
+    check_env(env.unwrapped, skip_render_check=False)
+
+
+def test_same_seed_same_rollout():
+    runs = []
+    for _ in range(2):
+        env = gymnasium.make("dfa/Nav2D-v0")
+        obs, _ = env.reset(seed=3)
+        rng = np.random.default_rng(3)
+        frames = [obs]
+        for _ in range(20):
+            obs, *_ = env.step(rng.uniform(-1, 1, 2).astype(np.float32))
+            frames.append(obs)
+        runs.append(np.stack(frames))
+    assert np.array_equal(*runs)
+
+
+def test_render_is_deterministic_and_batched_equals_single(nav):
+    scenes = [nav.test_task(s, i).scene for s in SHIFTS for i in range(3)]
+    batch = nav.render_batch(scenes)
+    assert batch.shape == (len(scenes), 36, 36, 3) and batch.dtype == np.uint8
+    for scene, frame in zip(scenes, batch, strict=True):
+        assert np.array_equal(nav.render(scene), frame)
+    # the agent is white; a present object adds its own colour
+    assert (batch[0] == 255).all(axis=-1).any()
+
+
+def test_expert_lands_on_the_goal_for_every_shift(nav):
+    for shift in SHIFTS:
+        for seed in range(5):
+            task = nav.test_task(shift, seed)
+            demo = nav.demonstrate(task)
+            assert demo.success, (shift, seed)
+            assert demo.actions.shape == (20, 2)
+    # the design's expert: 0.05 x (goal - start) per step on the training task
+    demo = nav.demonstrate(nav.train_task())
+    assert np.allclose(demo.actions, [0.5, -0.5])
+
+
+def test_shift_generator_plants_its_cause(nav):
+    for seed in range(5):
+        train = nav.train_task().scene
+        obj = nav.test_task("object_ti", seed)
+        slot, concept = obj.cause
+        assert obj.scene.obj(slot).value(concept) != train.obj(slot).value(concept)
+        dis = nav.test_task("distractor_ti", seed)
+        assert dis.scene.obj("distractor").present and dis.cause == ("distractor", "presence")
+        other = nav.test_task("other", seed)
+        assert other.cause is None and other.scene.obj("goal").pos != train.obj("goal").pos
+
+
+def test_vectorised_step_matches_single_steps(nav):
+    rng = np.random.default_rng(0)
+    scenes = [nav.test_task("distractor_ti", i).scene for i in range(8)]
+    actions = rng.uniform(-1.5, 1.5, (8, 2))
+    batched = nav.step_batch(scenes, actions)
+    single = [nav.step_batch([s], a[None])[0] for s, a in zip(scenes, actions, strict=True)]
+    assert batched == single
