@@ -1,10 +1,10 @@
 """The one MuJoCo model of the table, built once with MjSpec, and scenes written into it in place.
 
-Each of the four slots is a free body holding every shape: one display mesh per shape (shown
-or hidden through its geom group) and the shape's collision geoms (switched on and off through
-contype/conaffinity). An appearance is a material (82 of them: plain colours and textures).
-Changing a scene's shape, colour, presence or pose writes model and data fields; nothing is
-recompiled.
+Each of the four slots is a free body with a small pool of collision geoms, rewritten for its
+current shape from a library of every shape's compiled collision geoms, and a welded child body
+holding one display mesh per shape (shown or hidden through its geom group). An appearance is a
+material (82 of them: plain colours and textures). Changing a scene's shape, colour, presence or
+pose writes model and data fields; nothing is recompiled.
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ LIBRARY_Z_M = -50.0  # the static body holding every shape's collision geoms, ou
 
 def _add_assets(spec: mujoco.MjSpec) -> None:
     for name in C.TEXTURES:
-        img = T.texture(name)[::-1]  # MuJoCo's 2D textures start at v = 0 (the -y edge)
+        img = T.texture(name)  # (TEX_PX, TEX_PX, 3) uint8
         spec.add_texture(
             name=f"tex:{name}",
             type=mujoco.mjtTexture.mjTEXTURE_2D,
@@ -176,6 +176,8 @@ def build_spec() -> mujoco.MjSpec:
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     # pools are rewritten at run time, so the compiled per-body BVHs would be stale
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
+    # objects at rest (the goal and distractors during a carry) sleep until something hits them
+    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
     spec.visual.headlight.ambient = [AMBIENT] * 3
     spec.visual.headlight.diffuse = [1.0 - AMBIENT] * 3
     spec.visual.headlight.specular = [0.0] * 3

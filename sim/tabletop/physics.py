@@ -8,6 +8,10 @@ MuJoCo simulates everything settling.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless rendering
+
 from dataclasses import dataclass, replace
 
 import mujoco

@@ -7,6 +7,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 from collections.abc import Sequence
+from contextlib import contextmanager
 
 import mujoco
 import numpy as np
@@ -15,6 +16,17 @@ from sim.core import Scene
 from sim.tabletop.model import GROUP_SHOWN, Table
 
 SIZE_PX = 80
+
+
+def _release_egl() -> None:
+    """Make no EGL context current in this thread (nothing to do for other GL backends)."""
+    if os.environ.get("MUJOCO_GL") != "egl":
+        return
+    from OpenGL import EGL
+
+    display = EGL.eglGetCurrentDisplay()
+    if display != EGL.EGL_NO_DISPLAY:
+        EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
 
 
 class TopCamera:
@@ -28,6 +40,7 @@ class TopCamera:
         self.table = table
         self.size_px = size_px
         self.renderer = mujoco.Renderer(table.model, size_px, size_px, max_geom=64)
+        _release_egl()  # the constructor left the context current in this thread
         self.option = mujoco.MjvOption()
         self.option.geomgroup[:] = 0
         self.option.geomgroup[GROUP_SHOWN] = 1
@@ -52,12 +65,25 @@ class TopCamera:
         """uint8 (B, H, W, 3): each scene written into the one model, then drawn."""
         m, d = self.table.model, self.table.data
         out = np.empty((len(scenes), self.size_px, self.size_px, 3), np.uint8)
-        for i, s in enumerate(scenes):
-            self.table.load(s)
-            mujoco.mj_kinematics(m, d)
-            mujoco.mj_camlight(m, d)
-            self.render_current(out=out[i])
+        with self._current():
+            for i, s in enumerate(scenes):
+                self.table.load(s)
+                mujoco.mj_kinematics(m, d)
+                mujoco.mj_camlight(m, d)
+                self.render_current(out=out[i])
         return out
+
+    @contextmanager
+    def _current(self):
+        """Hold the GL context for one batch and let it go after, so that the next batch may
+        come from another thread (an EGL context is current in one thread at a time)."""
+        ctx = getattr(self.renderer, "_gl_context", None)
+        if ctx is not None:
+            ctx.make_current()
+        try:
+            yield
+        finally:
+            _release_egl()
 
     def close(self) -> None:
         self.renderer.close()

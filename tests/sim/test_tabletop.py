@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 import gymnasium as gym
 import numpy as np
@@ -228,3 +229,12 @@ def test_placements_keep_clear_of_the_demonstration(world):
             for o in s.objects:
                 if o.present and o.slot != "distractor1":
                     assert np.hypot(p[0] - o.pos[0], p[1] - o.pos[1]) >= TK.CLEAR_M
+
+
+def test_rendering_from_other_threads(world):
+    scenes = [world.test_task("object_ti", k).scene for k in range(6)]
+    expected = world.render_batch(scenes)
+    with ThreadPoolExecutor(3) as pool:
+        frames = list(pool.map(world.render, scenes))
+    assert np.array_equal(np.stack(frames), expected)
+    assert np.array_equal(world.render(scenes[0]), expected[0])
