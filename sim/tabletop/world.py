@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Reward, Scene, Task, Trajectory, World
+from sim.core import Reward, Scene, Task, Trajectory, UserError, World
 from sim.tabletop import tasks as TK
 from sim.tabletop.colours import ALL_COLOURS, DEFAULT_COLOURS
 
@@ -43,10 +43,13 @@ class TabletopWorld(World):
 
     def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]
-        assert not unknown, f"unknown colours {unknown}; accepted: {', '.join(ALL_COLOURS)}"
-        assert len(set(colours)) == len(colours) >= 2, "colours must be distinct, at least 2"
+        if unknown:
+            raise UserError(f"unknown colours {unknown}; accepted: {', '.join(ALL_COLOURS)}")
+        if len(set(colours)) != len(colours):
+            raise UserError(f"colours must be distinct, got {list(colours)}")
         for needed in (TK.TRAIN_OBJECT[1], TK.TRAIN_GOAL[1]):
-            assert needed in colours, f"colours must include the training colour {needed!r}"
+            if needed not in colours:
+                raise UserError(f"colours must include the training colour {needed!r}")
         self.colours = tuple(colours)
         self.space = TK.space(self.colours)
         self._lock = threading.RLock()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import gymnasium as gym
@@ -12,7 +13,17 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import sim
-from sim.core import ABSENT, PRESENCE, PRESENT, SHIFTS, Change, Edit, Obj
+from sim.core import (
+    ABSENT,
+    PRESENCE,
+    PRESENT,
+    SHIFTS,
+    Change,
+    Edit,
+    Obj,
+    UserError,
+    single_changes,
+)
 from sim.tabletop import tasks as TK
 from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
 from sim.tabletop.colours import (
@@ -23,6 +34,7 @@ from sim.tabletop.colours import (
     TEXTURES,
 )
 from sim.tabletop.env import TabletopEnv
+from sim.tabletop.world import TabletopWorld
 
 SEEDS = range(6)
 
@@ -238,3 +250,22 @@ def test_rendering_from_other_threads(world):
         frames = list(pool.map(world.render, scenes))
     assert np.array_equal(np.stack(frames), expected)
     assert np.array_equal(world.render(scenes[0]), expected[0])
+
+
+def test_colour_list_is_configurable():
+    small = TabletopWorld(colours=("red", "blue", "green", "tiger"))
+    assert small.space.dim == 4 * (29 + 4)
+    assert small.test_task("object_ti", 0).scene.obj("object").value("colour") in small.colours
+    with pytest.raises(UserError, match="unknown colours"):
+        TabletopWorld(colours=("red", "blue", "mauve"))
+
+
+def test_edit_and_render_is_fast(world):
+    base = world.test_task("distractor_ti", 1).scene
+    presence, values = single_changes(world.space, base)
+    scenes = [world.apply(base, Edit.of(c)) for c in presence + values]  # 434 single edits
+    world.render_batch(scenes[:5])
+    start = time.perf_counter()
+    world.render_batch(scenes)
+    per_scene_s = (time.perf_counter() - start) / len(scenes)
+    assert per_scene_s < 0.005, f"{per_scene_s * 1e3:.2f} ms per edited scene"
