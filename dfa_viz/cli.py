@@ -10,9 +10,9 @@ from typing import Annotated
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import tyro  # noqa: E402
+import tyro
 
-from sim.core import UserError  # noqa: E402
+from sim.core import UserError
 
 
 def run(
@@ -111,11 +111,33 @@ def demo(world: str = "nav2d", shift: str = "distractor_ti", seed: int = 0) -> N
     print(f"\nOpen the recording with: rerun {report.recording}")
 
 
+def serve(
+    world: str = "nav2d",
+    port: int = 8080,
+    host: str = "127.0.0.1",
+    session: Path | None = None,
+) -> None:
+    """Serve the feedback web page: pick a task, demonstrate, diagnose, mark TI/TR, adapt.
+
+    Binds 127.0.0.1 unless --host says otherwise; prints the URL. Every user action is appended
+    to the session folder as JSON lines before the page acknowledges it; --session DIR resumes.
+
+    Args:
+        world: the world the page opens on.
+        port: the port to try first (the next free one is taken if it is busy).
+        host: the interface to bind; 0.0.0.0 exposes the page to the network.
+        session: a session folder to resume (default: a new one under recordings/sessions/).
+    """
+    from dfa_viz.app import serve as serve_app
+
+    serve_app(world=world, port=port, host=host, session=session)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `dfa` console script; user errors print one line and exit 2."""
     try:
         tyro.extras.subcommand_cli_from_dict(
-            {"run": run, "train": train, "bench": bench, "demo": demo},
+            {"run": run, "train": train, "bench": bench, "demo": demo, "serve": serve},
             args=argv,
             prog="dfa",
         )

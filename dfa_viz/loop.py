@@ -6,12 +6,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from dfa_viz.users import User
 from policy import Policy, augment, evaluate, finetune
 from policy.evaluate import N_EVAL
 from policy.train import FINETUNE, TrainConfig
 from search import Candidate, SearchConfig, SearchResult, counterfactual_search
 from sim.core import Feedback, Task, Trajectory, World
-from dfa_viz.users import User
 
 
 class LoopObserver(Protocol):

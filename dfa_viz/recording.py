@@ -22,14 +22,18 @@ def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
     return uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/{world}/{shift}/{seed}")
 
 
-def blueprint() -> rrb.Blueprint:
+def blueprint(world: World) -> rrb.Blueprint:
     """Failed | demonstration | counterfactual | finetuned on one `step` timeline; the
-    action-distance plot beneath; edit, feedback, loss and success at the bottom."""
+    action-distance plot beneath; edit, feedback, loss and success at the bottom. Worlds with
+    a 3D scene add their 3D views beside the camera images."""
+    views: list = [rrb.Spatial2DView(origin=f"rollouts/{name}", name=name) for name in ROLLOUTS]
+    if getattr(world, "has_3d", False):
+        from dfa_viz import scene3d
+
+        views += scene3d.views()
     return rrb.Blueprint(
         rrb.Vertical(
-            rrb.Horizontal(
-                *(rrb.Spatial2DView(origin=f"rollouts/{name}", name=name) for name in ROLLOUTS)
-            ),
+            rrb.Horizontal(*views),
             rrb.Horizontal(
                 rrb.TimeSeriesView(origin="action_distance", name="action distance to the demo"),
                 rrb.TimeSeriesView(origin="search/candidates", name="every candidate tried"),
@@ -71,7 +75,7 @@ class Recorder:
         self.rec.set_log_time_enabled(False)
         self.rec.set_log_tick_enabled(False)
         self.rec.save(self.path)
-        self.rec.send_blueprint(blueprint())
+        self.rec.send_blueprint(blueprint(world))
         self.rec.send_property(
             "task",
             rr.AnyValues(
@@ -115,6 +119,10 @@ class Recorder:
         for k in range(actions.shape[1]):
             self._series(f"rollouts/{name}/action/{k}", steps, actions[:, k])
         self.rec.log(f"rollouts/{name}/success", rr.AnyValues(success=traj.success), static=True)
+        if getattr(self.world, "has_3d", False):
+            from dfa_viz import scene3d
+
+            scene3d.log_rollout(self.rec, self.world, name, traj)
         if name == "demonstration":
             self._demo = traj
         elif self._demo is not None and name in ("failed", "counterfactual", "finetuned"):
@@ -175,10 +183,9 @@ class Recorder:
 
     def on_feedback(self, feedback: Feedback) -> None:
         rows = ["| slot | concept | label | acceptable |", "|---|---|---|---|"]
-        rows += [
-            f"| {lab.slot} | {lab.concept} | {'TR' if lab.relevant else 'TI'} | {', '.join(lab.acceptable)} |"
-            for lab in feedback.labels
-        ]
+        for lab in feedback.labels:
+            kind = "TR" if lab.relevant else "TI"
+            rows.append(f"| {lab.slot} | {lab.concept} | {kind} | {', '.join(lab.acceptable)} |")
         self.rec.log(
             "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
         )

@@ -16,7 +16,8 @@ def format_report(r: LoopReport) -> str:
     if s is None or not s.found:
         tried = len(s.tried) if s else 0
         lines.append(
-            f"  counterfactual: none found in {tried} edits — the cause is outside the concept space"
+            f"  counterfactual: none found in {tried} edits — "
+            "the cause is outside the concept space"
         )
     else:
         best, ties = s.counterfactuals[0], s.counterfactuals[1:]

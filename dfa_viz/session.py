@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from tqdm import tqdm
 
 from dfa_viz.loop import LoopReport, run_loop
@@ -110,7 +109,7 @@ def run_once(
             policy,
             task,
             user,
-            search_config=SearchConfig(max_size=max_size),
+            search_config=SearchConfig.for_world(world, max_size=max_size),
             seed=seed,
             observer=recorder,
             on_progress=on_progress,

@@ -29,7 +29,9 @@ def _variants(world: World, task: Task, demo: Trajectory, feedback: Feedback):
             places = world.placements(task, lab.slot, demo)
             names = [c.name for c in slot.concepts]
             options += [
-                ("add", lab.slot, tuple(zip(names, look)), pos) for look in looks for pos in places
+                ("add", lab.slot, tuple(zip(names, look, strict=True)), pos)
+                for look in looks
+                for pos in places
             ]
         per_label.append(options)
     return per_label

@@ -56,7 +56,10 @@ def behaviour_clone(
     init: Policy | None = None,
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
-    """Fit a policy to the demonstrations (from `init`'s copy when given). Returns it and the losses."""
+    """Fit a policy to the demonstrations (from a copy of `init` when given).
+
+    Returns the policy and the loss of every step.
+    """
     torch.manual_seed(config.seed)
     gen = np.random.default_rng(config.seed)
     obs, act = transitions(world, demos)  # (N, H, W, 3), (N, A) | (N,)

@@ -31,6 +31,11 @@ class SearchConfig:
     prior: bool = True
     """Order edits of size >= 2 by the first-step distances their single changes got."""
 
+    @classmethod
+    def for_world(cls, world: World, *, max_size: int = 2) -> SearchConfig:
+        """Defaults a world asks for (e.g. `search_first_only` on large concept spaces)."""
+        return cls(max_size=max_size, first_only=getattr(world, "search_first_only", False))
+
 
 @dataclass(frozen=True)
 class SearchResult:

@@ -43,7 +43,8 @@ class Scene:
     """A world state: its objects in slot order and the agent's state.
 
     agent: world-specific numbers (nav2d: (x, y, t); doorkey: (col, row, dir, carrying, door, t)
-    with minigrid's door codes; tabletop: see sim/tabletop). Scenes are hashable values; `apply` makes edited copies.
+    with minigrid's door codes; tabletop: (steps,)). Scenes are hashable values; `apply` makes
+    edited copies.
     """
 
     world: str

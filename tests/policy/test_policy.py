@@ -28,9 +28,9 @@ def test_checkpoint_of_the_wrong_shape_is_refused(tmp_path):
     (tmp_path / "ckpt" / "config.json").write_text(json.dumps(cfg))
     with pytest.raises(UserError, match=r"has shape \(50,?\), expected \(100,?\)"):
         load_policy(tmp_path / "ckpt")
-    with pytest.raises(UserError, match="for world 'nav2d', not 'doorkey'"):
+    with pytest.raises(UserError, match=r"for world 'nav2d', not 'doorkey'"):
         load_policy(tmp_path / "ckpt", world="doorkey")
-    with pytest.raises(UserError, match="missing config.json"):
+    with pytest.raises(UserError, match=r"missing config\.json"):
         load_policy(tmp_path)
 
 

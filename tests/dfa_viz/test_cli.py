@@ -1,0 +1,203 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rerun as rr
+
+from dfa_viz.cli import main
+
+pytestmark = pytest.mark.slow
+DFA = [sys.executable, "-m", "dfa_viz.cli"]
+
+
+def dfa(*args, cwd=None):
+    return subprocess.run([*DFA, *args], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def run_json(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rec")
+    proc = dfa(
+        "run",
+        "--world",
+        "nav2d",
+        "--shift",
+        "object_ti",
+        "--seed",
+        "0",
+        "--json",
+        "--out",
+        str(out),
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def test_json_report_has_the_promised_fields(run_json):
+    r = run_json
+    for key in (
+        "world",
+        "shift",
+        "seed",
+        "counterfactual",
+        "feedback",
+        "success_before",
+        "success_after",
+        "recording",
+    ):
+        assert key in r
+    assert (r["world"], r["shift"], r["seed"]) == ("nav2d", "object_ti", 0)
+    change = r["counterfactual"][0][0]
+    assert set(change) == {"slot", "concept", "from", "to"} and change["slot"] == "goal"
+    assert r["feedback"][0]["label"] == "TI"
+    assert r["success_after"] > r["success_before"]
+
+
+def _chunks(path):
+    store = rr.chunk.RrdReader(path).store()
+    by_entity = {}
+    for chunk in store.stream():
+        by_entity.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch().to_pydict())
+    return by_entity
+
+
+def test_recording_reads_back_with_rerun(run_json, nav, nav_policy):
+    path = Path(run_json["recording"])
+    chunks = _chunks(path)
+    for entity in (
+        "/rollouts/failed/frame",
+        "/rollouts/demonstration/frame",
+        "/rollouts/counterfactual/frame",
+        "/rollouts/finetuned/frame",
+        "/action_distance/counterfactual",
+        "/edit/delta",
+        "/feedback",
+        "/finetune/loss",
+        "/evaluation/success",
+    ):
+        assert entity in chunks, entity
+    frames = chunks["/rollouts/failed/frame"]
+    assert sum(len(c["step"]) for c in frames) == 21
+    assert any(k.startswith("Image:") for k in frames[0])  # lossless, not EncodedImage
+    # every candidate the search tried is there, with its distance trace
+    cands = sorted(e for e in chunks if e.startswith("/search/candidates/c"))
+    assert len(cands) == run_json["candidates_tried"]
+    # the counterfactual's action distances are the real ones, recomputed here
+    from policy import failing_test_task
+
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    demo = nav.demonstrate(task)
+    ch = run_json["counterfactual"][0][0]
+    from sim.core import Change, Edit
+
+    edited = nav.apply(task.scene, Edit.of(Change(ch["slot"], ch["concept"], ch["from"], ch["to"])))
+    roll = nav.rollout(task, nav_policy, scene=edited)
+    want = np.abs(roll.actions - demo.actions).sum(axis=1)
+    rows = chunks["/action_distance/counterfactual"][0]
+    got = np.array([v[0] for v in rows["Scalars:scalars"]])
+    assert rows["step"] == list(range(20))
+    assert np.allclose(got, want, atol=1e-6)
+    assert (got < nav.epsilon).all()
+
+
+def test_same_seed_writes_the_same_recording(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert (
+            main(
+                [
+                    "run",
+                    "--world",
+                    "nav2d",
+                    "--shift",
+                    "distractor_ti",
+                    "--seed",
+                    "1",
+                    "--json",
+                    "--out",
+                    str(out),
+                ]
+            )
+            == 0
+        )
+    ra, rb = (
+        _chunks(a / "nav2d-distractor_ti-seed1.rrd"),
+        _chunks(b / "nav2d-distractor_ti-seed1.rrd"),
+    )
+    assert ra.keys() == rb.keys()
+    for key in ra:
+        assert _rows(ra[key]) == _rows(rb[key]), key
+
+
+def _rows(chunks):
+    """Every row of an entity as a tuple of its columns (chunk boundaries may differ)."""
+    rows = []
+    for c in chunks:
+        cols = sorted(k for k in c if "RowId" not in k)
+        rows += [tuple(repr(c[k][i]) for k in cols) for i in range(len(c[cols[0]]))]
+    return sorted(rows)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["run", "--world", "mars"], "unknown world 'mars'; accepted: nav2d"),
+        (["run", "--shift", "sideways"], "unknown shift 'sideways'; accepted: object_ti"),
+        (
+            ["run", "--label", "goal.size=TI"],
+            "unknown concept 'size' for slot 'goal'; accepted: colour, shape",
+        ),
+        (["run", "--label", "goal.colour=maybe"], "the answer is TI or TR"),
+    ],
+)
+def test_bad_input_gives_one_clear_line(args, message):
+    proc = dfa(*args)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in proc.stderr
+
+
+def test_malformed_demo_and_checkpoint_files(tmp_path):
+    bad_demo = tmp_path / "demo.npz"
+    bad_demo.write_bytes(b"garbage")
+    proc = dfa("run", "--demo", str(bad_demo))
+    assert proc.returncode == 2 and "not a readable trajectory" in proc.stderr
+    assert "Traceback" not in proc.stderr
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    (ckpt / "config.json").write_text(
+        json.dumps(
+            {
+                "policy": {
+                    "world": "nav2d",
+                    "obs_shape": [36, 36, 3],
+                    "action_dim": 3,
+                    "discrete": False,
+                }
+            }
+        )
+    )
+    from safetensors.numpy import save_file
+
+    save_file({"x": np.zeros(3, np.float32)}, str(ckpt / "model.safetensors"))
+    proc = dfa("run", "--policy", str(ckpt))
+    assert proc.returncode == 2 and "do not match the architecture" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_given_demonstration_is_used(tmp_path, nav, nav_policy):
+    from policy import failing_test_task
+
+    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 0)
+    path = nav.demonstrate(task).save(tmp_path / "demo.npz")
+    proc = dfa(
+        "run", "--shift", "distractor_ti", "--demo", str(path), "--json", "--out", str(tmp_path)
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["counterfactual"][0][0]["concept"] == "presence"
+    wrong = nav.demonstrate(nav.train_task()).save(tmp_path / "wrong.npz")
+    proc = dfa("run", "--shift", "distractor_ti", "--demo", str(wrong))
+    assert proc.returncode == 2 and "starts from another scene" in proc.stderr

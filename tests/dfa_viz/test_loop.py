@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+
+from dfa_viz.loop import run_loop
+from dfa_viz.users import SimulatedUser
+from policy import failing_test_task
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("shift", ["object_ti", "distractor_ti"])
+def test_feedback_and_finetuning_raise_success(nav, nav_policy, shift):
+    gains = []
+    for seed in range(3):
+        task, _ = failing_test_task(nav, nav_policy, shift, seed)
+        report = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=seed), seed=seed)
+        assert report.failed and report.search.found
+        assert [lab.relevant for lab in report.feedback.labels] == [False]
+        assert report.n_augmented > 0
+        assert report.success_after > report.success_before
+        gains.append(report.success_after - report.success_before)
+    assert np.mean(gains) >= 0.3
+
+
+def test_tr_feedback_augments_nothing(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "object_tr", 0)
+    report = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0)
+    assert [lab.relevant for lab in report.feedback.labels] == [True]
+    assert report.n_augmented == 0
+
+
+def test_other_shift_has_no_feedback_to_give(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "other", 0)
+    report = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0)
+    assert report.to_dict()["counterfactual"] == [] and report.feedback.labels == ()
+
+
+def test_simulated_user_accuracy_flips_labels(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    edit = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0).search.best.edit
+    always_wrong = SimulatedUser(nav, accuracy=0.0).label(task, edit)
+    assert [lab.relevant for lab in always_wrong.labels] == [True]
+    always_right = SimulatedUser(nav, accuracy=1.0).label(task, edit)
+    assert [lab.relevant for lab in always_right.labels] == [False]
+
+
+def test_same_seed_same_report(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 1)
+    a = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
+    b = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
+    assert a.to_dict() == b.to_dict() and a.losses == b.losses
