@@ -73,14 +73,14 @@ class Policy:
     def copy(self) -> Policy:
         return Policy(copy.deepcopy(self.net), chunk=self.chunk)
 
-    @torch.no_grad()
+    @torch.inference_mode()
     def outputs(self, obs: np.ndarray) -> np.ndarray:
         """Raw head outputs float32 (B, A): actions, or logits for discrete worlds."""
         x = torch.from_numpy(np.ascontiguousarray(obs))
-        outs = [self.net(x[i : i + self.chunk]) for i in range(0, len(x), self.chunk)]
-        return (
-            torch.cat(outs).numpy() if outs else np.zeros((0, self.config.action_dim), np.float32)
-        )
+        if len(x) <= self.chunk:
+            return self.net(x).numpy()
+        chunks = [self.net(x[i : i + self.chunk]) for i in range(0, len(x), self.chunk)]
+        return torch.cat(chunks).numpy()
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """uint8 (B, H, W, 3) -> float32 (B, A), or int64 (B,) argmax for discrete worlds."""

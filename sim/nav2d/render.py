@@ -65,18 +65,17 @@ def corner_index(pos: tuple[float, ...]) -> int:
     return CORNERS.index(key)
 
 
-def render_arrays(
-    agent_xy: np.ndarray,  # (B, 2) float
-    obj_glyph: np.ndarray,  # (B, K) int: corner * len(SHAPES) + shape
-    obj_colour: np.ndarray,  # (B, K) int
-    obj_present: np.ndarray,  # (B, K) bool
-) -> np.ndarray:
-    """Vectorised render of B scenes with K object slots each -> uint8 (B, 36, 36, 3)."""
-    b = agent_xy.shape[0]
-    out = np.zeros((b, SIZE_PX, SIZE_PX, 3), np.uint8)
-    for k in range(obj_glyph.shape[1]):
-        mask = _MASKS[obj_glyph[:, k]] & obj_present[:, k, None, None]  # (B, 36, 36)
-        out = np.where(mask[..., None], _RGB[obj_colour[:, k]][:, None, None, :], out)
+def render_objects(glyphs: list[int], colours: list[int]) -> np.ndarray:
+    """The objects of one scene, drawn in slot order on black -> uint8 (36, 36, 3)."""
+    out = np.zeros((SIZE_PX, SIZE_PX, 3), np.uint8)
+    for g, c in zip(glyphs, colours, strict=True):
+        out[_MASKS[g]] = _RGB[c]
+    return out
+
+
+def draw_agents(layers: np.ndarray, agent_xy: np.ndarray) -> np.ndarray:
+    """White agent discs over object layers: (B, 36, 36, 3) uint8, (B, 2) -> (B, 36, 36, 3)."""
+    out = layers.copy()
     dx = _CENTRES[None, None, :] - agent_xy[:, 0, None, None]  # (B, 1, 36)
     dy = _CENTRES[::-1][None, :, None] - agent_xy[:, 1, None, None]  # (B, 36, 1)
     disc = dx**2 + dy**2 <= AGENT_RADIUS**2  # (B, 36, 36)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -58,19 +59,20 @@ class Nav2DWorld(World):
 
     # -- appearance ---------------------------------------------------------------------------
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
-        n_slots = len(SPACE.slots)
-        b = len(scenes)
-        agent = np.empty((b, 2))
-        glyph = np.empty((b, n_slots), np.int64)
-        colour = np.empty((b, n_slots), np.int64)
-        present = np.empty((b, n_slots), bool)
-        for i, s in enumerate(scenes):
-            agent[i] = s.agent[:2]
-            for k, o in enumerate(s.objects):
-                glyph[i, k] = R.corner_index(o.pos) * len(R.SHAPES) + SHAPE.index(o.value("shape"))
-                colour[i, k] = COLOUR.index(o.value("colour"))
-                present[i, k] = o.present
-        return R.render_arrays(agent, glyph, colour, present)
+        layers = np.stack([self._objects_layer(s.objects) for s in scenes])  # (B, 36, 36, 3)
+        agent = np.array([s.agent[:2] for s in scenes], np.float64).reshape(-1, 2)  # (B, 2)
+        return R.draw_agents(layers, agent)
+
+    @functools.lru_cache(maxsize=4096)  # noqa: B019 (one world per process)
+    def _objects_layer(self, objects: tuple[Obj, ...]) -> np.ndarray:
+        """The static part of a frame: every present object, drawn once per distinct layout."""
+        shown = [o for o in objects if o.present]
+        layer = R.render_objects(
+            [R.corner_index(o.pos) * len(R.SHAPES) + SHAPE.index(o.value("shape")) for o in shown],
+            [COLOUR.index(o.value("colour")) for o in shown],
+        )
+        layer.flags.writeable = False
+        return layer
 
     # -- dynamics -----------------------------------------------------------------------------
     def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:
