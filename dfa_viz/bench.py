@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import platform
 import time
 from collections.abc import Callable
@@ -53,23 +54,21 @@ def _best_of(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
     return best, out
 
 
-def bench_world(name: str, *, repeats: int = 3, shift: str = "distractor_ti") -> dict:
-    """Time the whole size-1 + size-2 search (every edit of both sizes, no early stop),
-    batched in lockstep and naive, on one failing task of `shift`."""
+def bench_world(
+    name: str, *, repeats: int = 3, shift: str = "distractor_ti", sizes: tuple[int, ...] = (1, 2)
+) -> dict:
+    """Time the whole search over `sizes` (every edit of each size, no early stop), batched in
+    lockstep and naive, on one failing task of `shift`."""
     world = get_world(name)
     policy = base_policy(world)
     task, _ = failing_test_task(world, policy, shift, 0)
     demo = world.demonstrate(task)
-    edits = {k: list(combinations(world.space, task.scene, k)) for k in (1, 2)}
-    everything = edits[1] + edits[2]
+    edits = {k: list(combinations(world.space, task.scene, k)) for k in sizes}
+    everything = [e for k in sizes for e in edits[k]]
     eps = world.epsilon
 
-    def batched() -> list[Candidate]:
-        return [
-            c
-            for k in (1, 2)
-            for c in rollout_lockstep(world, policy, task.scene, demo, edits[k], epsilon=eps)
-        ]
+    def batched() -> list[Candidate]:  # as the search does for small spaces: one pass
+        return rollout_lockstep(world, policy, task.scene, demo, everything, epsilon=eps)
 
     t_batched, tried = _best_of(batched, repeats)
     t_naive, naive_valid = _best_of(
@@ -78,8 +77,7 @@ def bench_world(name: str, *, repeats: int = 3, shift: str = "distractor_ti") ->
     assert naive_valid == [c.valid for c in tried], "naive and batched searches disagree"
     return {
         "candidates": len(everything),
-        "size1": len(edits[1]),
-        "size2": len(edits[2]),
+        "per_size": {k: len(v) for k, v in edits.items()},
         "batched_s": t_batched,
         "naive_s": t_naive,
         "per_s": len(everything) / t_batched,
@@ -97,36 +95,86 @@ def bench_run(name: str, shift: str = "object_ti", seed: int = 0) -> float:
     return time.perf_counter() - t0
 
 
-def run_bench(worlds: tuple[str, ...], *, repeats: int = 3) -> list[dict]:
-    console = Console()
-    table = Table(
-        title=f"dfa bench — {platform.processor() or platform.machine()}, "
-        f"{platform.python_version()}"
+def machine() -> str:
+    """One line naming the machine the figures came from."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    import torch
+
+    return (
+        f"{cpu}; {os.cpu_count()} logical cores; torch {torch.__version__} with "
+        f"{torch.get_num_threads()} threads; Python {platform.python_version()}"
     )
-    for col in (
-        "world",
-        "candidates (size 1 + 2)",
-        "search s",
-        "candidates/s",
-        "naive s",
-        "batched / naive",
-        "dfa run s",
-    ):
-        table.add_column(col, justify="right")
-    rows = []
+
+
+# world -> (sizes searched, shift, targets): the issues' targets on 2 cores
+SEARCH_TARGETS = {
+    "nav2d": ((1, 2), "distractor_ti", 0.5, 10.0),
+    "doorkey": ((1,), "object_ti", 0.5, 10.0),
+}
+
+
+def run_bench(
+    worlds: tuple[str, ...], *, repeats: int = 3, out: Path = Path("benchmarks") / "latest.md"
+) -> list[tuple[str, str, str, str]]:
+    """Measure, print a table, and write it as Markdown to `out`. Rows: (what, value, target, ok)."""
+    rows: list[tuple[str, str, str, str]] = []
+
+    def add(what: str, value: str, target: str = "", ok: bool | None = None) -> None:
+        rows.append((what, value, target, "" if ok is None else ("yes" if ok else "NO")))
+
     for name in worlds:
-        r = bench_world(name, repeats=repeats)
-        r["run_s"] = bench_run(name)
-        r["world"] = name
-        rows.append(r)
-        table.add_row(
-            name,
-            f"{r['candidates']} ({r['size1']} + {r['size2']})",
-            f"{r['batched_s']:.3f}",
-            f"{r['per_s']:.0f}",
-            f"{r['naive_s']:.3f}",
-            f"{r['ratio']:.1f}x",
-            f"{r['run_s']:.1f}",
+        if name == "tabletop":
+            from dfa_viz.bench_tabletop import bench_tabletop
+
+            for what, value, target, ok in bench_tabletop():
+                add(f"tabletop: {what}", value, target, ok)
+            continue
+        sizes, shift, max_s, min_ratio = SEARCH_TARGETS[name]
+        r = bench_world(name, repeats=repeats, shift=shift, sizes=sizes)
+        label = " + ".join(f"size {k}" for k in sizes)
+        add(
+            f"{name}: whole {label} search ({r['candidates']} candidates, {shift})",
+            f"{r['batched_s'] * 1000:.1f} ms",
+            f"< {max_s * 1000:.0f} ms",
+            r["batched_s"] < max_s,
         )
+        add(f"{name}: candidate rollouts per second", f"{r['per_s']:.0f}")
+        add(
+            f"{name}: batched vs naive one-at-a-time loop ({r['naive_s'] * 1000:.0f} ms)",
+            f"{r['ratio']:.1f}x",
+            f">= {min_ratio:.0f}x",
+            r["ratio"] >= min_ratio,
+        )
+        run_s = bench_run(name)
+        add(
+            f"{name}: `dfa run` end to end, base policy cached",
+            f"{run_s:.1f} s",
+            "< 30 s",
+            run_s < 30,
+        )
+    console = Console()
+    table = Table(title=f"dfa bench — {machine()}")
+    for col in ("figure", "value", "target", "met"):
+        table.add_column(col)
+    for row in rows:
+        table.add_row(*row)
     console.print(table)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    md = [
+        f"# dfa bench\n\nMachine: {machine()}\n",
+        "| figure | value | target | met |",
+        "|---|---|---|---|",
+    ]
+    md += [f"| {' | '.join(r)} |" for r in rows]
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text("\n".join(md) + "\n")
+    tmp.replace(out)
+    console.print(f"written to {out}")
     return rows

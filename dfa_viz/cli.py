@@ -83,7 +83,7 @@ def train(worlds: tuple[str, ...] = ("nav2d",), seed: int = 0, retrain: bool = F
         print(f"{name}: base policy at {path}; training-distribution success {rate:.0%}")
 
 
-def bench(worlds: tuple[str, ...] = ("nav2d",), repeats: int = 3) -> None:
+def bench(worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop"), repeats: int = 3) -> None:
     """Measure the search against a naive loop, and a full `dfa run`, on this machine.
 
     Args:

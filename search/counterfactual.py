@@ -30,6 +30,8 @@ class SearchConfig:
     """Stop at the first valid edit instead of returning every minimal one (large spaces)."""
     prior: bool = True
     """Order edits of size >= 2 by the first-step distances their single changes got."""
+    joint_below: int = 512
+    """When all sizes together have at most this many edits, roll them out in one pass."""
 
     @classmethod
     def for_world(cls, world: World, *, max_size: int = 2) -> SearchConfig:
@@ -87,13 +89,16 @@ def counterfactual_search(
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
     eps = world.epsilon if config.epsilon is None else config.epsilon
+    totals = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
+    if not config.first_only and sum(totals.values()) <= config.joint_below:
+        return _joint_search(world, policy, scene, demo, totals, eps, on_candidate, on_progress)
     tried: list[Candidate] = []
     prior: dict[Change, float] = {}
     for size in range(1, config.max_size + 1):
         edits = combinations(
             world.space, scene, size, prior=prior if (config.prior and size > 1) else None
         )
-        total = count(world.space, scene, size)
+        total = totals[size]
         done, valid = 0, []
         if on_progress is not None:
             on_progress(size, 0, total)
@@ -116,8 +121,39 @@ def counterfactual_search(
             if valid and config.first_only:
                 break
         if valid:
-            ranked = tuple(
-                sorted(valid, key=lambda c: (not c.edit.is_presence, c.total, str(c.edit)))
-            )
-            return SearchResult(ranked, tuple(tried), size, config.max_size)
+            return SearchResult(_rank(valid), tuple(tried), size, config.max_size)
     return SearchResult((), tuple(tried), None, config.max_size)
+
+
+def _rank(valid: list[Candidate]) -> tuple[Candidate, ...]:
+    return tuple(sorted(valid, key=lambda c: (not c.edit.is_presence, c.total, str(c.edit))))
+
+
+def _joint_search(
+    world: World,
+    policy: Policy,
+    scene: Scene,
+    demo: Trajectory,
+    totals: dict[int, int],
+    eps: float,
+    on_candidate: CandidateCallback | None,
+    on_progress: ProgressCallback | None,
+) -> SearchResult:
+    """Small spaces: every size in one lockstep pass (one sequence of steps instead of one per
+    size), then the same answer as size by size. Larger sizes than the answer's are discarded
+    without being reported."""
+    edits = [e for k in totals for e in combinations(world.space, scene, k)]
+    results = rollout_lockstep(world, policy, scene, demo, edits, epsilon=eps)
+    tried: list[Candidate] = []
+    for size, total in totals.items():
+        batch = [c for c in results if c.edit.size == size]
+        tried += batch
+        if on_candidate is not None:
+            for cand in batch:
+                on_candidate(cand)
+        if on_progress is not None:
+            on_progress(size, total, total)
+        valid = [c for c in batch if c.valid]
+        if valid:
+            return SearchResult(_rank(valid), tuple(tried), size, max(totals))
+    return SearchResult((), tuple(tried), None, max(totals))
