@@ -1,0 +1,28 @@
+"""The feedback web page (viser): pick a task, demonstrate, diagnose, mark TI/TR, adapt, share.
+
+    serve(world=, port=, host=, session=)   serve until Ctrl-C (`dfa serve`)
+    demo(world=, shift=, seed=)             the page on a default scenario, diagnosis computed
+    start(...) -> App                       non-blocking (tests, benchmarks); App.stop()
+
+Modules: sessions (the JSON-lines session folder), state (the shared loop state machine), work
+(the jobs, composed from policy/search/recording), demonstrate (per-world input), frames and
+plots (what is drawn), page/compare/feedback/canvas/tables (one tab's GUI), server.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dfa_viz.app.server import App, demo, serve, start
+
+__all__ = ["App", "demo", "serve", "start"]
+
+
+def __getattr__(name: str) -> Any:
+    # Importing the package stays light (the CLI imports it on `dfa serve` only).
+    if name in __all__:
+        from dfa_viz.app import server
+
+        return getattr(server, name)
+    raise AttributeError(name)

@@ -1,0 +1,118 @@
+"""The 3D view of one tab: the task's top-down image on a clickable plane (demonstrations are
+given by clicking it), and, for worlds with meshes, the failed and counterfactual scenes in 3D.
+
+The plane spans [-SIZE/2, SIZE/2]^2 at z = 0, seen from above with +y up the screen. viser
+draws image row 0 at -y, so images are flipped vertically before they are sent.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import viser
+
+from dfa_viz.app.state import LoopState, View
+from sim.core import UserError
+
+SIZE = 12.0  # plane width and height in scene units
+MESH_OFFSET = 0.75 * SIZE  # tabletop 3D scenes sit left and right of the plane
+
+
+class Canvas:
+    def __init__(self, client: viser.ClientHandle, state: LoopState, notify) -> None:
+        self.client, self.state, self.notify = client, state, notify
+        self._lock = threading.Lock()
+        self.plane: viser.ImageHandle | None = None
+        self._shown: tuple | None = None
+        self._meshes: tuple | None = None
+        self._mesh_nodes: dict[str, object] = {}
+        cam = client.camera
+        cam.up_direction = (0.0, 1.0, 0.0)
+        cam.position = (0.0, 0.0, 1.9 * SIZE)
+        cam.look_at = (0.0, 0.0, 0.0)
+
+    def refresh(self, view: View, *, force: bool = False) -> None:
+        """Redraw the plane when the task or the demonstration changed."""
+        run = view.run
+        key = (id(run.task) if run else None, view.stage, view.demo_summary, view.version)
+        with self._lock:
+            if not force and self._shown is not None and key[:3] == self._shown[:3]:
+                return
+            self._shown = key
+            image = self.state.demo_canvas()
+            if image is None:
+                if self.plane is not None:
+                    self.plane.visible = False
+                return
+            image = np.ascontiguousarray(np.flipud(image))
+            if self.plane is None:
+                self.plane = self.client.scene.add_image(
+                    "/canvas", image, SIZE, SIZE, format="png", receive_shadow=False
+                )
+                self.plane.on_click(self._on_click)
+            else:
+                self.plane.image = image
+                self.plane.visible = True
+
+    def _on_click(self, event) -> None:
+        o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
+        if abs(d[2]) < 1e-9:
+            return
+        hit = o - o[2] / d[2] * d  # (3,) on z = 0
+        u, v = hit[0] / SIZE + 0.5, 0.5 - hit[1] / SIZE
+        if not (0.0 <= u <= 1.0 and 0.0 <= v <= 1.0):
+            return
+        view = self.state.snapshot()
+        if view.stage != "demonstrate" or view.demo_kind != "clicks":
+            return
+        try:
+            self.state.demo_click(float(u), float(v))
+        except UserError as e:
+            self.notify(str(e))
+
+    # -- 3D scenes (tabletop) -----------------------------------------------------------------
+    def show_scenes(self, view: View, step: int) -> None:
+        """Failed (left) and counterfactual (right) scenes as meshes, at the slider's step."""
+        run = view.run
+        if run is None or run.world.name != "tabletop":
+            return
+        key = (id(run.rollout), id(run.counterfactual), step)
+        with self._lock:
+            if key == self._meshes:
+                return
+            self._meshes = key
+            try:
+                from sim.tabletop.meshes import shape_mesh
+                from sim.tabletop.pose import TABLE_HALF_M, object_poses
+            except ImportError:
+                return
+            k = SIZE / (2 * TABLE_HALF_M) * 0.5  # metres -> scene units, half the plane size
+            scene = self.client.scene
+            nodes: dict[str, object] = {}
+            for name, traj, dx in (
+                ("failed", run.rollout, -MESH_OFFSET - SIZE / 4),
+                ("counterfactual", run.counterfactual, MESH_OFFSET + SIZE / 4),
+            ):
+                nodes[f"/scenes/{name}/table"] = scene.add_box(
+                    f"/scenes/{name}/table",
+                    color=(200, 190, 170),
+                    dimensions=(2 * TABLE_HALF_M * k, 2 * TABLE_HALF_M * k, 0.02 * k),
+                    position=(dx, 0.0, -0.01 * k),
+                )
+                if traj is None:
+                    continue
+                s = traj.scenes[min(step, len(traj.scenes) - 1)]
+                for p in object_poses(s):
+                    mesh = shape_mesh(p.shape)
+                    nodes[f"/scenes/{name}/{p.slot}"] = scene.add_mesh_simple(
+                        f"/scenes/{name}/{p.slot}",
+                        np.asarray(mesh.vertices, np.float32) * k,
+                        np.asarray(mesh.faces, np.uint32),
+                        color=tuple(int(255 * c) for c in p.rgba[:3]),
+                        wxyz=p.quat,
+                        position=(dx + p.pos[0] * k, p.pos[1] * k, p.pos[2] * k),
+                    )
+            for gone in set(self._mesh_nodes) - set(nodes):
+                self._mesh_nodes[gone].remove()
+            self._mesh_nodes = nodes

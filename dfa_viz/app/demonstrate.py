@@ -1,0 +1,269 @@
+"""Demonstrating in the page, one small class per world.
+
+Every input shows a canvas (the task's top-down image, upscaled, with what the user did drawn
+on it) and turns the user's clicks or keys into a Trajectory from the task's initial scene:
+
+- nav2d: click waypoints on the image; the agent follows the path at constant speed.
+- doorkey: keys or buttons (turn left/right, forward, pick up, drop, toggle), one step each.
+- tabletop: click the pick point, then the place point.
+
+Canvas clicks arrive as (u, v) in [0, 1]: u to the right, v down the image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dfa_viz.app import frames
+from sim.core import Task, Trajectory, UserError, World
+
+
+@dataclass(frozen=True)
+class Key:
+    """A discrete action the page offers as a button and a hotkey."""
+
+    label: str
+    hotkey: str  # a viser HotkeyKey
+    action: int
+
+
+class DemoInput:
+    """The demonstration being built for one task (shared by every tab of a session)."""
+
+    kind = "expert"  # "clicks", "keys" or "expert" (only the scripted expert)
+    hint = "Ask the expert for a demonstration."
+    keys: tuple[Key, ...] = ()
+
+    def __init__(self, world: World, task: Task) -> None:
+        self.world, self.task = world, task
+        self.first = world.render(task.scene)  # (H, W, 3) uint8
+        self.scale = frames.scale_for(world.obs_shape, frames.CANVAS_PX)
+
+    def click(self, u: float, v: float) -> None:
+        raise UserError(f"{self.world.name} demonstrations are not given by clicking")
+
+    def act(self, action: int) -> None:
+        raise UserError(f"{self.world.name} demonstrations are not given with keys")
+
+    def undo(self) -> None: ...
+
+    def clear(self) -> None: ...
+
+    def ready(self) -> bool:
+        return False
+
+    def summary(self) -> str:
+        return ""
+
+    def trajectory(self) -> Trajectory:
+        raise UserError("nothing demonstrated yet")
+
+    def canvas(self) -> np.ndarray:
+        """uint8 (H', W', 3): the image to click on, with the demonstration so far."""
+        return frames.upscale(self.first, self.scale)
+
+    def _rollout(self, actions: list[np.ndarray]) -> Trajectory:
+        scenes = [self.task.scene]
+        for a in actions:
+            scenes.append(self.world.step_batch([scenes[-1]], np.asarray(a)[None])[0])
+        obs = self.world.render_batch(scenes)  # (T+1, H, W, 3)
+        return Trajectory(
+            tuple(scenes), obs, np.stack(actions), self.world.success(self.task, scenes)
+        )
+
+
+class WaypointDemo(DemoInput):
+    """nav2d: the agent walks the clicked path from its start at constant speed."""
+
+    kind = "clicks"
+    hint = (
+        "Click waypoints on the image in the 3D view (the last one is where the agent should "
+        "end); the agent walks the path at constant speed over the episode."
+    )
+
+    def __init__(self, world: World, task: Task) -> None:
+        super().__init__(world, task)
+        from sim.nav2d.render import ARENA
+
+        self.arena = ARENA
+        self.points: list[tuple[float, float]] = []  # arena (x, y)
+
+    def _uv(self, x: float, y: float) -> tuple[float, float]:
+        return (x + self.arena) / (2 * self.arena), (self.arena - y) / (2 * self.arena)
+
+    def click(self, u: float, v: float) -> None:
+        x = float(np.clip(-self.arena + 2 * self.arena * u, -self.arena, self.arena))
+        y = float(np.clip(self.arena - 2 * self.arena * v, -self.arena, self.arena))
+        self.points.append((round(x, 3), round(y, 3)))
+
+    def undo(self) -> None:
+        if self.points:
+            self.points.pop()
+
+    def clear(self) -> None:
+        self.points.clear()
+
+    def ready(self) -> bool:
+        return bool(self.points)
+
+    def summary(self) -> str:
+        return ", ".join(f"({x:.1f}, {y:.1f})" for x, y in self.points)
+
+    def trajectory(self) -> Trajectory:
+        if not self.points:
+            raise UserError("click at least one waypoint first")
+        start = np.array(self.task.scene.agent[:2])
+        path = np.array([start, *self.points])  # (K+1, 2)
+        seg = np.linalg.norm(np.diff(path, axis=0), axis=1)  # (K,)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        horizon = self.world.horizon
+        targets = np.stack(
+            [
+                np.interp(cum[-1] * np.arange(1, horizon + 1) / horizon, cum, path[:, k])
+                for k in (0, 1)
+            ],
+            axis=1,
+        )  # (T, 2) where the agent should be after each step
+        scenes, actions = [self.task.scene], []
+        for t in range(horizon):
+            a = np.clip(targets[t] - np.array(scenes[-1].agent[:2]), -1, 1).astype(np.float32)
+            actions.append(a)
+            scenes.append(self.world.step_batch([scenes[-1]], a[None])[0])
+        obs = self.world.render_batch(scenes)  # (T+1, H, W, 3)
+        return Trajectory(
+            tuple(scenes), obs, np.stack(actions), self.world.success(self.task, scenes)
+        )
+
+    def canvas(self) -> np.ndarray:
+        image = super().canvas()
+        uv = [self._uv(x, y) for x, y in self.points]
+        start = self._uv(*self.task.scene.agent[:2])
+        return frames.mark_points(image, uv, start_uv=start, colours=((255, 140, 0),))
+
+
+class KeyDemo(DemoInput):
+    """doorkey: one step per key press or button; the rest of the episode turns left."""
+
+    kind = "keys"
+    hint = (
+        "Drive the agent: ← / → turn, ↑ forward, P pick up, D drop, T toggle (or the buttons). "
+        "Steps left after the goal are filled by turning."
+    )
+
+    def __init__(self, world: World, task: Task) -> None:
+        super().__init__(world, task)
+        from sim.doorkey import layout as L
+
+        self.fill = L.LEFT
+        self.keys = (
+            Key("turn left", "arrowleft", L.LEFT),
+            Key("turn right", "arrowright", L.RIGHT),
+            Key("forward", "arrowup", L.FORWARD),
+            Key("pick up", "P", L.PICKUP),
+            Key("drop", "D", L.DROP),
+            Key("toggle", "T", L.TOGGLE),
+        )
+        self.actions: list[int] = []
+        self.scenes = [task.scene]
+
+    def act(self, action: int) -> None:
+        if not 0 <= action < self.world.action_dim:
+            raise UserError(f"action {action} is not one of 0..{self.world.action_dim - 1}")
+        if len(self.actions) >= self.world.horizon or self.world.done(self.scenes[-1]):
+            return  # the episode is over; further keys do nothing
+        self.actions.append(int(action))
+        self.scenes.append(self.world.step_batch([self.scenes[-1]], np.array([action]))[0])
+
+    def undo(self) -> None:
+        if self.actions:
+            self.actions.pop()
+            self.scenes.pop()
+
+    def clear(self) -> None:
+        self.actions.clear()
+        del self.scenes[1:]
+
+    def ready(self) -> bool:
+        return bool(self.actions)
+
+    def summary(self) -> str:
+        names = {k.action: k.label for k in self.keys}
+        done = " (episode over)" if self.world.done(self.scenes[-1]) else ""
+        return (
+            f"{len(self.actions)} steps: " + ", ".join(names[a] for a in self.actions[-8:]) + done
+        )
+
+    def trajectory(self) -> Trajectory:
+        if not self.actions:
+            raise UserError("take at least one step first")
+        actions = self.actions + [self.fill] * (self.world.horizon - len(self.actions))
+        return self._rollout([np.asarray(a, np.int64) for a in actions])
+
+    def canvas(self) -> np.ndarray:
+        return frames.upscale(self.world.render(self.scenes[-1]), self.scale)
+
+
+class PickPlaceDemo(DemoInput):
+    """tabletop: the first click is where to pick, the second where to place."""
+
+    kind = "clicks"
+    hint = "Click the object to pick, then the place to put it (a third click starts over)."
+
+    def __init__(self, world: World, task: Task) -> None:
+        super().__init__(world, task)
+        from sim.tabletop.tasks import VIEW_HALF_M
+
+        self.half_m = VIEW_HALF_M
+        self.points: list[tuple[float, float]] = []  # table (x, y) in metres
+
+    def click(self, u: float, v: float) -> None:
+        if len(self.points) == 2:
+            self.points.clear()
+        h = self.half_m
+        self.points.append((round(-h + 2 * h * u, 4), round(h - 2 * h * v, 4)))
+
+    def undo(self) -> None:
+        if self.points:
+            self.points.pop()
+
+    def clear(self) -> None:
+        self.points.clear()
+
+    def ready(self) -> bool:
+        return len(self.points) == 2
+
+    def summary(self) -> str:
+        names = ("pick", "place")
+        return ", ".join(
+            f"{n} ({x:.2f}, {y:.2f}) m" for n, (x, y) in zip(names, self.points, strict=False)
+        )
+
+    def trajectory(self) -> Trajectory:
+        if len(self.points) != 2:
+            raise UserError("click the pick point and then the place point first")
+        (px, py), (qx, qy) = self.points
+        return self._rollout([np.array([px, py, qx, qy], np.float32)])
+
+    def canvas(self) -> np.ndarray:
+        h = self.half_m
+        uv = [((x + h) / (2 * h), (h - y) / (2 * h)) for x, y in self.points]
+        return frames.mark_points(
+            super().canvas(),
+            uv,
+            colours=((255, 200, 0), (0, 200, 255)),
+            labels=("pick", "place"),
+        )
+
+
+INPUTS: dict[str, type[DemoInput]] = {
+    "nav2d": WaypointDemo,
+    "doorkey": KeyDemo,
+    "tabletop": PickPlaceDemo,
+}
+
+
+def input_for(world: World, task: Task) -> DemoInput:
+    """The demonstration input of the task's world (only the expert for unknown worlds)."""
+    return INPUTS.get(world.name, DemoInput)(world, task)

@@ -1,0 +1,253 @@
+"""One tab's page: the control panel (task, judge, demonstrate, diagnose, feedback, adapt,
+share), the compare panel and the 3D canvas, all drawn from the shared LoopState.
+
+Built in on_client_connect; every tab of a session subscribes to the same state, so what one
+tab does the others show at once.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+
+import viser
+
+from dfa_viz.app import plots
+from dfa_viz.app.canvas import Canvas
+from dfa_viz.app.compare import ComparePanel
+from dfa_viz.app.feedback import FeedbackSection
+from dfa_viz.app.state import LoopState, View
+from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
+from sim.core import SHIFTS, UserError
+
+
+class Page:
+    def __init__(self, client: viser.ClientHandle, state: LoopState, worlds: tuple[str, ...]):
+        self.client, self.state = client, state
+        self._lock = threading.RLock()
+        self._commands: list = []
+        self._keys_for: int | None = None
+        self._ties: tuple[str, ...] = ()
+        gui = client.gui
+        client.gui.main_panel.dock_left()
+        client.gui.main_panel.set_width(400)
+        self.header = gui.add_markdown("### DFA — diagnose, feedback, adapt")
+        self.status = gui.add_markdown("")
+        self.error = gui.add_markdown("", visible=False)
+
+        with gui.add_folder("1 · Task"):
+            self.world = gui.add_dropdown("world", worlds, initial_value=state.world_name)
+            self.shift = gui.add_dropdown("shift", SHIFTS, initial_value="distractor_ti")
+            self.seed = gui.add_number("seed", 0, min=0, step=1)
+            self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY)
+            self.next = gui.add_button("Next task", icon=viser.Icon.PLAYER_TRACK_NEXT)
+            self.task_job = gui.add_progress_bar(0, animated=True, visible=False)
+
+        self.judge_folder = gui.add_folder("2 · Judge", visible=False)
+        with self.judge_folder:
+            gui.add_markdown("Did the policy do what you wanted?")
+            self.failed = gui.add_button("Failed", color="red", icon=viser.Icon.X)
+            self.succeeded = gui.add_button("Succeeded", color="green", icon=viser.Icon.CHECK)
+
+        self.demo_folder = gui.add_folder("3 · Demonstrate", visible=False)
+        with self.demo_folder:
+            self.demo_hint = gui.add_markdown("")
+            self.demo_summary = gui.add_markdown("")
+            self.keys_holder = gui.add_folder("actions", visible=False)
+            self.use_demo = gui.add_button("Use my demonstration", icon=viser.Icon.CHECK)
+            self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+            self.clear = gui.add_button("Clear", icon=viser.Icon.TRASH)
+            self.expert = gui.add_button("Ask the expert", icon=viser.Icon.ROBOT)
+
+        self.diag_folder = gui.add_folder("4 · Diagnose", visible=False)
+        with self.diag_folder:
+            self.search_job = gui.add_progress_bar(0, animated=True, visible=False)
+            self.diagnosis = gui.add_markdown("")
+            self.tie = gui.add_dropdown("minimal edit", ("—",), visible=False)
+            self.delta = gui.add_markdown("")
+
+        self.feedback = FeedbackSection(client, state, self.warn)
+
+        self.adapt_folder = gui.add_folder("6 · Adapt", visible=False)
+        with self.adapt_folder:
+            self.finetune = gui.add_button("Augment & finetune", icon=viser.Icon.BOLT)
+            self.finetune_job = gui.add_progress_bar(0, animated=True, visible=False)
+            data, series, scales = plots.loss_plot([], state.finetune_steps)
+            self.loss = gui.add_uplot(
+                data, series, scales=scales, title="finetuning loss", aspect=2.0, visible=False
+            )
+            self.results = gui.add_markdown("")
+
+        with gui.add_folder("7 · Share"):
+            self.download = gui.add_button("Download .rrd", icon=viser.Icon.DOWNLOAD)
+            self.share = gui.add_markdown("")
+
+        self.compare = ComparePanel(client, state, on_step=self._on_step)
+        self.canvas = Canvas(client, state, self.warn)
+        self._wire()
+        self.unsubscribe = state.subscribe(self.on_change)
+        self.on_change({"all"})
+
+    # -- events -------------------------------------------------------------------------------
+    def warn(self, text: str) -> None:
+        self.client.add_notification("Not now", text, color="yellow", auto_close_seconds=6.0)
+
+    def _guard(self, fn):
+        def run(event) -> None:
+            try:
+                if fn(event) is False:
+                    self.warn("a job is running; wait for it to finish")
+            except UserError as e:
+                self.warn(str(e))
+            except Exception as e:
+                traceback.print_exc()
+                self.warn(f"{type(e).__name__}: {e}")
+
+        return run
+
+    def _wire(self) -> None:
+        s = self.state
+        self.load.on_click(
+            self._guard(lambda _: s.pick(self.world.value, self.shift.value, int(self.seed.value)))
+        )
+        self.next.on_click(self._guard(lambda _: s.next_task()))
+        self.failed.on_click(self._guard(lambda _: s.judge(True)))
+        self.succeeded.on_click(self._guard(lambda _: s.judge(False)))
+        self.use_demo.on_click(self._guard(lambda _: s.demonstrate(expert=False)))
+        self.expert.on_click(self._guard(lambda _: s.demonstrate(expert=True)))
+        self.undo.on_click(self._guard(lambda _: s.demo_undo()))
+        self.clear.on_click(self._guard(lambda _: s.demo_clear()))
+        self.finetune.on_click(self._guard(lambda _: s.finetune()))
+        self.download.on_click(self._guard(self._download))
+
+        @self.tie.on_update
+        def _(event) -> None:
+            if event.client is None or self.tie.value not in self._ties:
+                return
+            self._guard(lambda _: s.select_tie(self._ties.index(self.tie.value)))(event)
+
+    def _download(self, _event) -> None:
+        path = self.state.write_recording()
+        if path is None:
+            raise UserError("pick a task first: there is nothing recorded yet")
+        self.client.send_file_download(path.name, path.read_bytes(), save_immediately=True)
+
+    def _on_step(self, view: View, step: int) -> None:
+        self.canvas.show_scenes(view, step)
+
+    # -- drawing ------------------------------------------------------------------------------
+    def on_change(self, what: set[str]) -> None:
+        view = self.state.snapshot()
+        with self._lock, self.client.atomic():
+            self._draw_controls(view)
+            if what & {"all", "stage", "marks", "demo"}:
+                self.feedback.refresh(view)
+                self._draw_diagnosis(view)
+                self._draw_keys(view)
+                self.canvas.refresh(view, force="all" in what)
+                self.compare.refresh(view)
+            if what & {"all", "stage", "losses", "job"}:
+                self._draw_adapt(view)
+        self.client.flush()
+
+    def _draw_controls(self, view: View) -> None:
+        busy = view.job is not None
+        run, stage = view.run, view.stage
+        self.status.content = status_text(view)
+        self.error.content = f"**Error:** {view.error}" if view.error else ""
+        self.error.visible = bool(view.error)
+        for b in (self.load, self.next):
+            b.disabled = busy
+        job = view.job
+        for bar, names in (
+            (self.task_job, ("task",)),
+            (self.search_job, ("search",)),
+            (self.finetune_job, ("finetune",)),
+        ):
+            bar.visible = job is not None and job.name in names
+            if bar.visible:
+                bar.value = round(100 * job.progress, 1)
+        self.judge_folder.visible = run is not None and stage in ("judge", "solved")
+        for b in (self.failed, self.succeeded):
+            b.disabled = busy or stage != "judge"
+        self.demo_folder.visible = run is not None and stage == "demonstrate"
+        self.demo_hint.content = view.demo_hint
+        self.demo_summary.content = f"*{view.demo_summary}*" if view.demo_summary else ""
+        clicks_or_keys = view.demo_kind in ("clicks", "keys")
+        for b in (self.use_demo, self.undo, self.clear):
+            b.visible = clicks_or_keys
+            b.disabled = busy
+        self.use_demo.disabled = busy or not view.demo_ready
+        self.expert.disabled = busy
+        self.diag_folder.visible = run is not None and stage in ("diagnose", "feedback", "adapted")
+        self.adapt_folder.visible = run is not None and stage in ("feedback", "adapted")
+        self.finetune.disabled = busy or (run is not None and bool(run.unmarked()))
+        self.download.disabled = run is None
+        rec = view.recording
+        self.share.content = (
+            f"Recording: `{rec}`  \nSession: `{view.session}`"
+            if rec is not None
+            else f"Session: `{view.session}`"
+        )
+
+    def _draw_diagnosis(self, view: View) -> None:
+        run = view.run
+        if run is None:
+            return
+        self.diagnosis.content = diagnosis_text(view)
+        edit = run.edit
+        self.delta.content = edit_table(run.world, run.task.scene, edit) if edit else ""
+        ties = ()
+        if run.result is not None and run.result.found:
+            ties = tuple(
+                f"{i + 1}. {c.edit}"
+                for i, c in enumerate(run.result.counterfactuals[: len(run.counterfactuals)])
+            )
+        self.tie.visible = len(ties) > 1
+        if ties != self._ties:
+            self._ties = ties
+            self.tie.options = ties or ("—",)
+        if ties:
+            self.tie.value = ties[run.tie]
+
+    def _draw_adapt(self, view: View) -> None:
+        run = view.run
+        if run is None:
+            return
+        losses = view.losses if view.job is not None and view.job.name == "finetune" else ()
+        if not losses and run.adaptation is not None:
+            losses = run.adaptation.losses
+        self.loss.visible = bool(losses)
+        if losses:
+            data, _, _ = plots.loss_plot(losses, self.state.finetune_steps)
+            self.loss.data = data
+        self.results.content = results_text(view)
+
+    def _draw_keys(self, view: View) -> None:
+        """Buttons and hotkeys for worlds demonstrated with keys (doorkey)."""
+        run = view.run
+        want = id(run.task) if run is not None and view.stage == "demonstrate" else None
+        keys = self.state.demo_keys() if want is not None else ()
+        if (want if keys else None) == self._keys_for:
+            return
+        self._keys_for = want if keys else None
+        for handle in self._commands:
+            handle.remove()
+        self._commands = []
+        self.keys_holder.visible = bool(keys)
+        if not keys:
+            return
+        gui = self.client.gui
+        with self.keys_holder:
+            for key in keys:
+                button = gui.add_button(key.label, hint=f"key: {key.hotkey}")
+                button.on_click(self._guard(lambda _, a=key.action: self.state.demo_key(a)))
+                self._commands.append(button)
+        for key in keys:
+            cmd = gui.add_command(key.label, hotkey=key.hotkey)
+            cmd.on_trigger(self._guard(lambda _, a=key.action: self.state.demo_key(a)))
+            self._commands.append(cmd)
+
+    def close(self) -> None:
+        self.unsubscribe()
+        self.compare.close()

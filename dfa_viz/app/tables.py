@@ -1,0 +1,80 @@
+"""The page's words: what to do now, the diagnosis, the Δφ table, the adaptation results."""
+
+from __future__ import annotations
+
+from dfa_viz.app.state import View
+from sim.core import Edit, Scene, World
+
+NO_COUNTERFACTUAL = "No counterfactual found — the cause is outside the concept space."
+
+STATUS = {
+    "pick": "Pick a world, a shift and a seed, then **Load task** (or **Next task**).",
+    "judge": (
+        "Watch the policy's rollout (the *failed* column: press ▶ play or drag the slider). "
+        "Did it do what you wanted?"
+    ),
+    "solved": "You judged the rollout a success: nothing to diagnose. Load another task.",
+    "demonstrate": "Show what you wanted: demonstrate it here, or ask the scripted expert.",
+    "diagnose": "Searching for the smallest concept edit that makes the policy follow you…",
+    "feedback": "Mark each edited concept TI or TR, then **Augment & finetune**.",
+    "adapted": "Adapted. Compare the finetuned rollout with the failed one, or load another task.",
+}
+
+
+def status_text(view: View) -> str:
+    run = view.run
+    text = STATUS[view.stage]
+    if run is not None:
+        text = f"**Task:** “{run.task.reward.instruction}”  \n{text}"
+    if view.stage == "feedback" and run is not None and run.edit is None:
+        text = f"**{NO_COUNTERFACTUAL}**  \nYou can still finetune on the demonstration alone."
+    if view.job is not None:
+        text += f"  \n*{view.job.text}*"
+    return text
+
+
+def diagnosis_text(view: View) -> str:
+    run = view.run
+    if run is None or run.result is None:
+        return "Searching…" if view.stage == "diagnose" else ""
+    res = run.result
+    if not res.found:
+        return (
+            f"**{NO_COUNTERFACTUAL}**  \nNo edit of up to {res.max_size} concept changes makes "
+            f"the policy follow the demonstration ({len(res.tried)} edits tried): what changed "
+            "is something the concepts do not describe (e.g. a position)."
+        )
+    n = len(res.counterfactuals)
+    ties = f"; {n - 1} other minimal edit{'s' if n > 2 else ''} tie (choose below)" if n > 1 else ""
+    return (
+        f"**Counterfactual found** (size {res.size}, {len(res.tried)} edits tried{ties}). "
+        "The policy follows your demonstration when the scene is edited like this:"
+    )
+
+
+def edit_table(world: World, scene: Scene, edit: Edit) -> str:
+    """Δφ as a before → after table of the edited concepts."""
+    rows = ["| slot | concept | before | → | after |", "|---|---|---|---|---|"]
+    rows += [f"| {c.slot} | {c.concept} | {c.old} | → | **{c.new}** |" for c in edit.ordered]
+    return "\n".join(rows)
+
+
+def results_text(view: View) -> str:
+    run = view.run
+    if run is None:
+        return ""
+    ad = run.adaptation
+    if ad is None:
+        if run.unmarked():
+            return "Mark " + ", ".join(run.unmarked()) + " first."
+        return ""
+    labels = "; ".join(
+        f"{lab.slot}.{lab.concept} {'TR' if lab.relevant else 'TI'}" for lab in ad.feedback.labels
+    )
+    return (
+        f"Finetuned on 1 demonstration + {ad.n_augmented} augmented"
+        + (f" ({labels})" if labels else "")
+        + f".  \n**Success on 10 fresh tasks from R': {ad.success_before:.0%} → "
+        f"{ad.success_after:.0%}**  \nThe *finetuned* column shows the new policy on this task"
+        f" ({'succeeds' if ad.rollout.success else 'still fails'})."
+    )

@@ -1,0 +1,180 @@
+"""Sessions on disk: durable appends, resume, and clear errors for malformed folders."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dfa_viz.app.sessions import LOG, Session, SessionError, read_events
+from sim.core import Obj, Scene, Trajectory
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
+    """Every file's bytes and mtime: to show that reading touched nothing."""
+    return {
+        str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _write(folder: Path, *lines: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOG
+    path.write_text("".join(line + "\n" for line in lines))
+    return path
+
+
+HEADER = json.dumps({"type": "session", "version": 1, "world": "nav2d"})
+TASK = json.dumps(
+    {"type": "task", "world": "nav2d", "shift": "object_ti", "seed": 0, "task_seed": 3}
+)
+
+
+def test_appends_are_on_disk_and_resume(tmp_path):
+    s = Session.open(tmp_path / "s", world="nav2d")
+    s.append("task", world="nav2d", shift="object_ti", seed=0, task_seed=3)
+    s.append("judgement", failed=True)
+    s.close()
+    lines = (tmp_path / "s" / LOG).read_text().splitlines()
+    assert [json.loads(x)["type"] for x in lines] == ["session", "task", "judgement"]
+    again = Session.open(tmp_path / "s", world="doorkey")
+    assert again.world == "nav2d"  # the session's own world wins
+    assert [e["type"] for e in again.events] == ["session", "task", "judgement"]
+    assert [e["_line"] for e in again.events] == [1, 2, 3]
+    again.close()
+
+
+@pytest.mark.parametrize(
+    ("bad", "expected"),
+    [
+        ("{not json", "not a JSON line"),
+        ('{"type": "dance"}', "unknown event type 'dance'; accepted: session, task"),
+        ('{"type": "judgement"}', "judgement event without 'failed'"),
+        ('{"type": "judgement", "failed": "yes"}', "judgement.failed must be bool"),
+        (
+            '{"type": "task", "world": "nav2d", "shift": "x", "seed": true, "task_seed": 1}',
+            "task.seed must be int",
+        ),
+        ("[1, 2]", "expected a JSON object"),
+    ],
+)
+def test_malformed_line_names_file_and_line_and_touches_nothing(tmp_path, bad, expected):
+    folder = tmp_path / "s"
+    path = _write(folder, HEADER, TASK, bad, '{"type": "judgement", "failed": true}')
+    (folder / "demo-0003.npz").write_bytes(b"keep me")
+    before = _snapshot(folder)
+    with pytest.raises(SessionError) as err:
+        Session.open(folder, world="nav2d")
+    assert f"{path}:3:" in str(err.value)
+    assert expected in str(err.value)
+    assert _snapshot(folder) == before  # no lock file, no rewrite, nothing
+
+
+def test_header_is_checked(tmp_path):
+    _write(tmp_path / "a", TASK)
+    with pytest.raises(SessionError, match=r"session.jsonl:1: the first line must be"):
+        Session.open(tmp_path / "a", world="nav2d")
+    _write(tmp_path / "b", json.dumps({"type": "session", "version": 9, "world": "nav2d"}))
+    with pytest.raises(SessionError, match=r":1: session format version 9"):
+        Session.open(tmp_path / "b", world="nav2d")
+    _write(tmp_path / "c")
+    with pytest.raises(SessionError, match=r":1: empty session log"):
+        Session.open(tmp_path / "c", world="nav2d")
+
+
+def test_line_cut_short_by_a_crash_is_dropped_and_cut_on_append(tmp_path):
+    folder = tmp_path / "s"
+    path = _write(folder, HEADER, TASK)
+    with open(path, "ab") as f:
+        f.write(b'{"type": "judgement", "fai')  # the process died mid-write
+    events, _, notes = read_events(folder)
+    assert [e["type"] for e in events] == ["session", "task"]
+    assert notes and f"{path}:3: incomplete last line" in notes[0]
+    s = Session.open(folder, world="nav2d")
+    s.append("judgement", failed=False)
+    s.close()
+    lines = path.read_text().splitlines()
+    assert len(lines) == 3 and json.loads(lines[2])["failed"] is False
+
+
+def test_complete_last_line_without_newline_gets_one(tmp_path):
+    folder = tmp_path / "s"
+    path = folder / LOG
+    folder.mkdir()
+    path.write_text(HEADER + "\n" + TASK)  # no trailing newline
+    s = Session.open(folder, world="nav2d")
+    s.append("judgement", failed=True)
+    s.close()
+    assert [json.loads(x)["type"] for x in path.read_text().splitlines()] == [
+        "session",
+        "task",
+        "judgement",
+    ]
+
+
+def test_one_server_per_session(tmp_path):
+    s = Session.open(tmp_path / "s", world="nav2d")
+    with pytest.raises(SessionError, match="open in another running server"):
+        Session.open(tmp_path / "s", world="nav2d")
+    s.close()
+    Session.open(tmp_path / "s", world="nav2d").close()  # free again once closed
+
+
+def test_files_named_by_events(tmp_path):
+    s = Session.open(tmp_path / "s", world="nav2d")
+    scene = Scene("nav2d", (Obj("goal", True, (("colour", "red"),), (5.0, -5.0)),), (0.0, 0.0, 0.0))
+    traj = Trajectory(
+        (scene, scene), np.zeros((2, 4, 4, 3), np.uint8), np.zeros((1, 2), np.float32), False
+    )
+    name = s.save_trajectory(traj, "demo")
+    ev = s.append("demonstration", file=name, source="clicks")
+    assert s.load_trajectory(name, ev).equals(traj)
+    with pytest.raises(SessionError, match=r"session.jsonl:2: '../x.npz' is not a file name"):
+        s.file("../x.npz", ev)
+    (s.folder / name).write_bytes(b"garbage")
+    with pytest.raises(
+        SessionError, match=rf"session.jsonl:2: the file it names is unusable: .*{name}"
+    ):
+        s.load_trajectory(name, ev)
+    s.close()
+
+
+def test_events_out_of_order_name_the_line(tmp_path):
+    from dfa_viz.app.state import LoopState
+
+    folder = tmp_path / "s"
+    path = _write(folder, HEADER, '{"type": "judgement", "failed": true}')
+    before = _snapshot(folder)
+    session = Session.open(folder, world="nav2d")
+    with pytest.raises(SessionError, match=rf"{path}:2: pick a task first"):
+        LoopState(session, out=tmp_path / "rec")
+    session.close()
+    after = _snapshot(folder)
+    after.pop("session.lock")
+    assert after == before
+
+
+def test_cli_serve_on_a_malformed_session_says_one_line(tmp_path):
+    folder = tmp_path / "s"
+    path = _write(folder, HEADER, "{oops")
+    before = _snapshot(folder)
+    proc = subprocess.run(
+        [sys.executable, "-m", "dfa_viz.cli", "serve", "--session", str(folder), "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        f"dfa: error: {path}:2: not a JSON line (Expecting property name enclosed in double quotes)"
+    ]
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert _snapshot(folder) == before
