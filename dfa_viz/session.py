@@ -51,13 +51,6 @@ def load_demo(world: World, task: Task, path: Path) -> Trajectory:
     return demo
 
 
-class _GivenDemoUser(SimulatedUser):
-    demo: Trajectory | None = None
-
-    def demonstrate(self, task: Task) -> Trajectory:
-        return self.demo if self.demo is not None else super().demonstrate(task)
-
-
 def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path, float]:
     """Train or load a world's base policy; returns its cache folder and training success."""
     world = get_world(name)
@@ -90,9 +83,8 @@ def run_once(
     overrides = parse_labels(world, labels)
     policy: Policy = load_policy(policy_dir, world=world.name) if policy_dir else base_policy(world)
     task, _ = failing_test_task(world, policy, shift, seed)
-    user = _GivenDemoUser(world, accuracy=accuracy, seed=seed, overrides=overrides)
-    if demo_path is not None:
-        user.demo = load_demo(world, task, demo_path)
+    demo = load_demo(world, task, demo_path) if demo_path is not None else None
+    user = SimulatedUser(world, accuracy=accuracy, seed=seed, overrides=overrides, demo=demo)
     path = out / f"{world.name}-{shift}-seed{seed}.rrd"
     recorder = Recorder(path, world, task)
     bars: dict[int, tqdm] = {}

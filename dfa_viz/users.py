@@ -33,12 +33,14 @@ class SimulatedUser:
     accuracy: probability that each label is right; otherwise the label is flipped (a TI
         concept called TR, or a TR one called TI with every instantiation accepted).
     overrides: (slot, concept) -> True (TR) / False (TI), answers fixed by hand.
+    demo: a demonstration the user brought (e.g. loaded from .npz) instead of the expert's.
     """
 
     world: World
     accuracy: float = 1.0
     seed: int = 0
     overrides: dict[tuple[str, str], bool] = field(default_factory=dict)
+    demo: Trajectory | None = None
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng([self.seed, 7])
@@ -47,7 +49,7 @@ class SimulatedUser:
         return not rollout.success
 
     def demonstrate(self, task: Task) -> Trajectory:
-        return self.world.demonstrate(task)
+        return self.demo if self.demo is not None else self.world.demonstrate(task)
 
     def label(self, task: Task, edit: Edit) -> Feedback:
         labels = []
