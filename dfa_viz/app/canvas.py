@@ -13,7 +13,6 @@ import numpy as np
 import viser
 
 from dfa_viz.app.state import LoopState, View
-from sim.core import UserError
 
 SIZE = 12.0  # plane width and height in scene units
 MESH_OFFSET = 0.75 * SIZE  # tabletop 3D scenes sit left and right of the plane
@@ -27,7 +26,11 @@ class Canvas:
         self._shown: tuple | None = None
         self._meshes: tuple | None = None
         self._mesh_nodes: dict[str, object] = {}
-        cam = client.camera
+        self.pin_camera()
+
+    def pin_camera(self) -> None:
+        """Look straight down at the plane (again: arrow keys also turn viser's camera)."""
+        cam = self.client.camera
         cam.up_direction = (0.0, 1.0, 0.0)
         cam.position = (0.0, 0.0, 1.9 * SIZE)
         cam.look_at = (0.0, 0.0, 0.0)
@@ -39,7 +42,10 @@ class Canvas:
         with self._lock:
             if not force and self._shown is not None and key[:3] == self._shown[:3]:
                 return
+            new_task = self._shown is None or key[0] != self._shown[0]
             self._shown = key
+            if new_task or view.demo_kind == "keys":
+                self.pin_camera()
             image = self.state.demo_canvas()
             if image is None:
                 if self.plane is not None:
@@ -55,7 +61,11 @@ class Canvas:
                 self.plane.image = image
                 self.plane.visible = True
 
-    def _on_click(self, event) -> None:
+    async def _on_click(self, event) -> None:
+        """On viser's event loop, so that waypoints keep the order they were clicked in."""
+        self.state.submit(lambda: self._click(event), self.notify)
+
+    def _click(self, event) -> None:
         o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
         if abs(d[2]) < 1e-9:
             return
@@ -66,10 +76,7 @@ class Canvas:
         view = self.state.snapshot()
         if view.stage != "demonstrate" or view.demo_kind != "clicks":
             return
-        try:
-            self.state.demo_click(float(u), float(v))
-        except UserError as e:
-            self.notify(str(e))
+        self.state.demo_click(float(u), float(v))
 
     # -- 3D scenes (tabletop) -----------------------------------------------------------------
     def show_scenes(self, view: View, step: int) -> None:

@@ -73,9 +73,16 @@ class ComparePanel:
                 self.slider.max = horizon
                 if self.slider.value > horizon:
                     self.slider.value = 0
+            ad = run.adaptation
             self.title.content = (
                 f"**{run.world.name} · {run.shift} · seed {run.seed}** — "
                 f"“{run.task.reward.instruction}”"
+                + (
+                    f"  \nSuccess on 10 fresh tasks: **{ad.success_before:.0%} → "
+                    f"{ad.success_after:.0%}** after finetuning"
+                    if ad is not None
+                    else ""
+                )
             )
             self.show(force=True)
 

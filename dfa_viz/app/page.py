@@ -241,12 +241,18 @@ class Page:
         with self.keys_holder:
             for key in keys:
                 button = gui.add_button(key.label, hint=f"key: {key.hotkey}")
-                button.on_click(self._guard(lambda _, a=key.action: self.state.demo_key(a)))
+                button.on_click(self._key_handler(key.action))
                 self._commands.append(button)
         for key in keys:
             cmd = gui.add_command(key.label, hotkey=key.hotkey)
-            cmd.on_trigger(self._guard(lambda _, a=key.action: self.state.demo_key(a)))
+            cmd.on_trigger(self._key_handler(key.action))
             self._commands.append(cmd)
+
+    def _key_handler(self, action: int):
+        async def on_key(_event) -> None:  # on the event loop: keys keep their order
+            self.state.submit(lambda: self.state.demo_key(action), self.warn)
+
+        return on_key
 
     def close(self) -> None:
         self.unsubscribe()

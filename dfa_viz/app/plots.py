@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from viser import uplot
 
+from search import compared_steps
 from sim.core import Trajectory, World
 
 COLOURS = {
@@ -18,12 +19,13 @@ COLOURS = {
 
 
 def distance(world: World, traj: Trajectory, demo: Trajectory) -> np.ndarray:
-    """float64 (T,): per-step action distance to the demonstration (L1; 0/1 for discrete)."""
+    """float64 (T,): per-step action distance to the demonstration (L1; 0/1 for discrete);
+    NaN after the demonstration has ended (those steps are not compared)."""
     a = traj.actions.reshape(traj.horizon, -1).astype(np.float64)
     b = demo.actions.reshape(demo.horizon, -1).astype(np.float64)
-    if world.discrete:
-        return (a != b).any(axis=1).astype(np.float64)
-    return np.abs(a - b).sum(axis=1)
+    d = (a != b).any(axis=1).astype(np.float64) if world.discrete else np.abs(a - b).sum(axis=1)
+    d[compared_steps(world, demo) :] = np.nan
+    return d
 
 
 def distance_plot(
@@ -44,7 +46,7 @@ def distance_plot(
             if traj is None:
                 continue
             d = distance(world, traj, demo)
-            top = max(top, float(d.max()))
+            top = max(top, float(np.nanmax(d, initial=0.0)))
             data.append(d)
             series.append({"label": name, "stroke": COLOURS.get(name, "#495057"), "width": 2})
         if not world.discrete and world.epsilon > 0:
@@ -55,8 +57,9 @@ def distance_plot(
     lines = data[1:]
     marker = np.full(horizon, np.nan)
     t = min(step, horizon - 1)
-    if lines:
-        marker[t] = max(float(v[t]) for v in lines)
+    at_t = [float(v[t]) for v in lines if not np.isnan(v[t])]
+    if at_t:
+        marker[t] = max(at_t)
     data.append(marker)
     series.append(
         {
@@ -74,18 +77,15 @@ def distance_plot(
 
 
 def loss_plot(losses: list[float] | tuple[float, ...], steps: int):
-    """The finetuning loss over gradient steps (grows while the job runs)."""
-    n = max(len(losses), 1)
-    x = np.arange(n, dtype=np.float64)
-    y = np.asarray(losses, np.float64) if losses else np.zeros(1)
-    top = float(y.max()) if len(y) else 1.0
-    data = (x, y)
+    """The finetuning loss over gradient steps (grows while the job runs), log scale."""
+    y = np.maximum(np.asarray(losses, np.float64), 1e-9) if len(losses) else np.ones(1)
+    x = np.arange(len(y), dtype=np.float64)
     series: tuple[uplot.Series, ...] = (
         {"label": "step"},
         {"label": "loss", "stroke": COLOURS["finetuned"], "width": 2},
     )
     scales: dict[str, uplot.Scale] = {
         "x": {"time": False, "auto": False, "range": (0.0, float(max(steps - 1, 1)))},
-        "y": {"auto": False, "range": (0.0, round(max(top, 1e-6) * 1.05, 6))},
+        "y": {"auto": True, "distr": 3, "log": 10},
     }
-    return data, series, scales
+    return (x, y), series, scales

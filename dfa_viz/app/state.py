@@ -14,6 +14,7 @@ worker thread at a time (a second start while one runs is refused, harmlessly); 
 from __future__ import annotations
 
 import itertools
+import queue
 import threading
 import time
 import traceback
@@ -62,7 +63,26 @@ class LoopState:
         self._record_lock = threading.Lock()
         self._listeners: dict[int, Listener] = {}
         self._ids = itertools.count()
+        self._inputs: queue.Queue = queue.Queue()
+        threading.Thread(target=self._input_loop, name="dfa-inputs", daemon=True).start()
         self._replay()
+
+    # -- ordered input: clicks and keys apply in the order they arrived -----------------------
+    def submit(self, fn: Callable[[], object], on_error: Callable[[str], None]) -> None:
+        """Queue a quick user input (a waypoint, a key); the page calls this from viser's event
+        loop, where messages arrive in order (thread-pool callbacks could overtake each other)."""
+        self._inputs.put((fn, on_error))
+
+    def _input_loop(self) -> None:
+        while True:
+            fn, on_error = self._inputs.get()
+            try:
+                fn()
+            except UserError as e:
+                on_error(str(e))
+            except Exception as e:
+                traceback.print_exc()
+                on_error(f"{type(e).__name__}: {e}")
 
     # -- subscribers --------------------------------------------------------------------------
     def subscribe(self, fn: Listener) -> Callable[[], None]:

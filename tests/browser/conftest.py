@@ -1,0 +1,167 @@
+"""Fixtures for driving the real page in Debian's Chromium through playwright."""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+VIEWPORT = {"width": 1600, "height": 1000}
+FINETUNE_STEPS = 60  # enough for nav2d distractor_ti to go 50% -> 100%; keeps the suite quick
+OUTPUT = Path(os.environ.get("DFA_TEST_OUTPUT", "recordings/test-output")) / "browser"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="session")
+def browser():
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"{CHROMIUM} is missing: apt-get install -y --no-install-recommends chromium")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def shots(request) -> Path:
+    """Where this test saves its screenshots."""
+    folder = OUTPUT / request.node.name.replace("[", "-").replace("]", "")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
+@pytest.fixture
+def serve_app(tmp_path):
+    """Start the page in this process: serve_app(world=...) -> App; stopped at teardown."""
+    from dfa_viz.app import start
+
+    apps = []
+
+    def make(world: str = "nav2d", session: Path | None = None):
+        app = start(
+            world=world,
+            port=free_port(),
+            session=session or tmp_path / f"session-{len(apps)}",
+            out=tmp_path / "recordings",
+            finetune_steps=FINETUNE_STEPS,
+        )
+        apps.append(app)
+        return app
+
+    yield make
+    for app in apps:
+        app.stop()
+
+
+class UI:
+    """Helpers that act on a page the way a user does."""
+
+    def __init__(self, browser) -> None:
+        self.browser = browser
+        self.pages = []
+
+    def open(self, url: str):
+        """A new tab on the page, once it is interactive."""
+        page = self.browser.new_page(viewport=VIEWPORT)
+        page.set_default_timeout(120_000)  # jobs (loading a policy, a search) on 2 busy cores
+        self.pages.append(page)
+        page.goto(url)
+        page.get_by_role("button", name="Load task").wait_for(timeout=30_000)
+        self.dismiss_notifications(page)
+        return page
+
+    @staticmethod
+    def dismiss_notifications(page) -> None:
+        """Close viser's 'software WebGL' notice so that it covers nothing."""
+        try:
+            page.get_by_text("Software WebGL rendering detected").wait_for(timeout=3_000)
+        except Exception:
+            return
+        close = page.locator(".mantine-Notification-closeButton")
+        for i in range(close.count()):
+            close.nth(i).click()
+
+    @staticmethod
+    def canvas_point(page, rgb, *, tol: int = 40) -> tuple[float, float]:
+        """Page coordinates of the centre of the pixels of colour `rgb` in the 3D view."""
+        canvases = page.locator("canvas")
+        boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
+        areas = [b["width"] * b["height"] if b else 0 for b in boxes]
+        canvas = canvases.nth(int(np.argmax(areas)))  # the 3D view, not a plot
+        box = boxes[int(np.argmax(areas))]
+        img = np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB")).astype(int)
+        ys, xs = np.nonzero(np.abs(img - np.array(rgb)).sum(axis=-1) < tol)
+        assert len(xs), f"no pixel of colour {rgb} in the 3D view"
+        sx, sy = box["width"] / img.shape[1], box["height"] / img.shape[0]
+        return box["x"] + xs.mean() * sx, box["y"] + ys.mean() * sy
+
+    @staticmethod
+    def frames(page):
+        """The compare strip image (the only blob-URL image on the page)."""
+        return page.locator("img[src^='blob:']").first
+
+    @staticmethod
+    def wait_for_text(page, text: str, timeout_s: float = 120.0):
+        page.get_by_text(text).first.wait_for(timeout=timeout_s * 1000)
+        return page.get_by_text(text).first
+
+    @staticmethod
+    def success(page) -> tuple[int, int]:
+        """(before, after) percentages from the adaptation result."""
+        text = page.get_by_text("Success on 10 fresh tasks from R'").first.inner_text()
+        m = re.search(r"(\d+)% → (\d+)%", text)
+        assert m, text
+        return int(m.group(1)), int(m.group(2))
+
+    @staticmethod
+    def wait_until(cond, timeout_s: float = 30.0, what: str = "condition") -> None:
+        deadline = time.monotonic() + timeout_s
+        while not cond():
+            assert time.monotonic() < deadline, f"timed out waiting for {what}"
+            time.sleep(0.05)
+
+    def close(self) -> None:
+        for p in self.pages:
+            p.close()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if report.when == "call":
+        item.failed_call = report.failed
+    return report
+
+
+@pytest.fixture
+def ui(browser, request, shots):
+    helper = UI(browser)
+    yield helper
+    if getattr(request.node, "failed_call", False):  # keep what the pages showed
+        for i, page in enumerate(helper.pages):
+            page.screenshot(path=shots / f"failure-tab{i}.png")
+    helper.close()
