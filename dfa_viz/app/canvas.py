@@ -15,7 +15,6 @@ import viser
 from dfa_viz.app.state import LoopState, View
 
 SIZE = 12.0  # plane width and height in scene units
-MESH_OFFSET = 0.75 * SIZE  # tabletop 3D scenes sit left and right of the plane
 
 
 class Canvas:
@@ -47,6 +46,8 @@ class Canvas:
             if new_task or view.demo_kind == "keys":
                 self.pin_camera()
             image = self.state.demo_canvas()
+            if image is not None and self._meshes_shown(view):
+                image = np.broadcast_to(image[2, 2], image.shape)  # the bare table under the meshes
             if image is None:
                 if self.plane is not None:
                     self.plane.visible = False
@@ -80,46 +81,55 @@ class Canvas:
 
     # -- 3D scenes (tabletop) -----------------------------------------------------------------
     def show_scenes(self, view: View, step: int) -> None:
-        """Failed (left) and counterfactual (right) scenes as meshes, at the slider's step."""
+        """Tabletop: the failed rollout's objects as meshes over the image plane at the slider's
+        step, with the counterfactual's as a translucent ghost (after the diagnosis)."""
         run = view.run
-        if run is None or run.world.name != "tabletop":
-            return
-        key = (id(run.rollout), id(run.counterfactual), step)
+        show = self._meshes_shown(view)
+        key = (id(run.rollout), id(run.counterfactual), step) if show else None
         with self._lock:
             if key == self._meshes:
                 return
             self._meshes = key
-            try:
-                from sim.tabletop.meshes import shape_mesh
-                from sim.tabletop.pose import TABLE_HALF_M, object_poses
-            except ImportError:
-                return
-            k = SIZE / (2 * TABLE_HALF_M) * 0.5  # metres -> scene units, half the plane size
-            scene = self.client.scene
             nodes: dict[str, object] = {}
-            for name, traj, dx in (
-                ("failed", run.rollout, -MESH_OFFSET - SIZE / 4),
-                ("counterfactual", run.counterfactual, MESH_OFFSET + SIZE / 4),
-            ):
-                nodes[f"/scenes/{name}/table"] = scene.add_box(
-                    f"/scenes/{name}/table",
-                    color=(200, 190, 170),
-                    dimensions=(2 * TABLE_HALF_M * k, 2 * TABLE_HALF_M * k, 0.02 * k),
-                    position=(dx, 0.0, -0.01 * k),
-                )
-                if traj is None:
-                    continue
-                s = traj.scenes[min(step, len(traj.scenes) - 1)]
-                for p in object_poses(s):
-                    mesh = shape_mesh(p.shape)
-                    nodes[f"/scenes/{name}/{p.slot}"] = scene.add_mesh_simple(
-                        f"/scenes/{name}/{p.slot}",
-                        np.asarray(mesh.vertices, np.float32) * k,
-                        np.asarray(mesh.faces, np.uint32),
-                        color=tuple(int(255 * c) for c in p.rgba[:3]),
-                        wxyz=p.quat,
-                        position=(dx + p.pos[0] * k, p.pos[1] * k, p.pos[2] * k),
-                    )
+            if show:
+                nodes = self._add_meshes(run, step)
             for gone in set(self._mesh_nodes) - set(nodes):
                 self._mesh_nodes[gone].remove()
             self._mesh_nodes = nodes
+
+    @staticmethod
+    def _meshes_shown(view: View) -> bool:
+        run = view.run
+        return (
+            run is not None
+            and run.world.name == "tabletop"
+            and view.stage in ("feedback", "adapted")
+        )
+
+    def _add_meshes(self, run, step: int) -> dict[str, object]:
+        from sim.tabletop.meshes import shape_mesh
+        from sim.tabletop.pose import object_poses
+        from sim.tabletop.tasks import VIEW_HALF_M
+
+        k = SIZE / (2 * VIEW_HALF_M)  # metres -> scene units: the plane spans the camera's view
+        nodes: dict[str, object] = {}
+        for name, traj, opacity in (
+            ("failed", run.rollout, None),
+            ("counterfactual", run.counterfactual, 0.45),
+        ):
+            if traj is None:
+                continue
+            scene = traj.scenes[min(step, len(traj.scenes) - 1)]
+            for p in object_poses(scene):
+                mesh = shape_mesh(p.shape)
+                path = f"/scenes/{name}/{p.slot}"
+                nodes[path] = self.client.scene.add_mesh_simple(
+                    path,
+                    np.asarray(mesh.vertices, np.float32) * k,
+                    np.asarray(mesh.faces, np.uint32),
+                    color=tuple(int(255 * c) for c in p.rgba[:3]),
+                    opacity=opacity,
+                    wxyz=p.quat,
+                    position=(p.pos[0] * k, p.pos[1] * k, p.pos[2] * k + 0.01),
+                )
+        return nodes

@@ -70,7 +70,7 @@ def distance_plot(
         }
     )
     scales: dict[str, uplot.Scale] = {
-        "x": {"time": False, "auto": False, "range": (0.0, float(horizon - 1))},
+        "x": {"time": False, "auto": False, "range": (-0.5, horizon - 0.5)},
         "y": {"auto": False, "range": (0.0, round(top * 1.1, 3))},
     }
     return tuple(data), tuple(series), scales

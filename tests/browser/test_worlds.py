@@ -1,0 +1,95 @@
+"""The other worlds in the page: DoorKey by keyboard, the tabletop by pick and place clicks."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+from playwright.sync_api import expect
+
+pytestmark = pytest.mark.browser
+
+# sim.doorkey.layout: LEFT, RIGHT, FORWARD, PICKUP, DROP, TOGGLE -> the page's hotkeys
+KEYS = {0: "ArrowLeft", 1: "ArrowRight", 2: "ArrowUp", 3: "p", 4: "d", 5: "t"}
+
+
+def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
+    pytest.importorskip("minigrid")
+    from search import compared_steps
+
+    app = serve_app("doorkey")
+    page = ui.open(app.url)
+    page.get_by_role("button", name="Load task").click()  # doorkey, distractor_ti, seed 0
+    page.get_by_role("button", name="Failed").click()
+    expect(page.get_by_role("button", name="turn left")).to_be_visible()
+
+    run = app.state.run
+    expert = run.world.demonstrate(run.task)
+    n = compared_steps(run.world, expert)  # steps until the goal
+    actions = [int(a) for a in expert.actions[:n]]
+    page.get_by_text("Show what you wanted").click()  # focus the page, not an input
+    for i, a in enumerate(actions[:-1]):
+        page.keyboard.press(KEYS[a])
+        expect(page.get_by_text(f"{i + 1} steps:")).to_be_visible()
+    page.get_by_role("button", name="forward" if actions[-1] == 2 else "toggle").click()
+    expect(page.get_by_text("(episode over)")).to_be_visible()
+    page.screenshot(path=shots / "0-demonstrated.png")
+    page.get_by_role("button", name="Use my demonstration").click()
+    page.get_by_text("edits tried").first.wait_for()
+    page.screenshot(path=shots / "1-diagnosis.png")
+
+    demo = app.state.run.demo
+    assert demo.success
+    assert [int(a) for a in demo.actions[:n]] == actions
+    assert demo.scenes[: n + 1] == expert.scenes[: n + 1]
+    assert app.state.run.demo_source == "keys"
+
+
+def _plane_box(page, grey=(128, 128, 128), tol=12):
+    """Screen box (x0, y0, x1, y1) of the tabletop image in the 3D view (the grey table)."""
+    canvases = page.locator("canvas")
+    boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
+    i = int(np.argmax([b["width"] * b["height"] if b else 0 for b in boxes]))
+    img = np.asarray(Image.open(io.BytesIO(canvases.nth(i).screenshot())).convert("RGB"))
+    ys, xs = np.nonzero(np.abs(img.astype(int) - np.array(grey)).sum(axis=-1) < tol)
+    sx, sy = boxes[i]["width"] / img.shape[1], boxes[i]["height"] / img.shape[0]
+    x0, y0 = boxes[i]["x"], boxes[i]["y"]
+    return (
+        x0 + xs.min() * sx,
+        y0 + ys.min() * sy,
+        x0 + (xs.max() + 1) * sx,
+        y0 + (ys.max() + 1) * sy,
+    )
+
+
+def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
+    pytest.importorskip("mujoco")
+    from sim.tabletop.tasks import VIEW_HALF_M
+
+    app = serve_app("tabletop")
+    page = ui.open(app.url)
+    page.get_by_role("button", name="Load task").click()  # tabletop, distractor_ti, seed 0
+    page.get_by_role("button", name="Failed").click()
+    ui.wait_for_text(page, "Click the object to pick")
+    task = app.state.run.task
+    x0, y0, x1, y1 = _plane_box(page)
+    for slot in ("object", "goal"):  # pick the object, place it on the goal
+        x, y = task.scene.obj(slot).pos[:2]
+        u, v = (x + VIEW_HALF_M) / (2 * VIEW_HALF_M), (VIEW_HALF_M - y) / (2 * VIEW_HALF_M)
+        page.mouse.click(x0 + u * (x1 - x0), y0 + v * (y1 - y0))
+    expect(page.get_by_role("button", name="Use my demonstration")).to_be_enabled()
+    page.screenshot(path=shots / "0-demonstrated.png")
+    page.get_by_role("button", name="Use my demonstration").click()
+    page.get_by_text("edits tried").first.wait_for()
+    page.get_by_role("button", name="step ▶").click()  # after the pick-and-place
+    expect(page.get_by_role("slider")).to_have_attribute("aria-valuenow", "1")
+    page.wait_for_timeout(1000)  # let the frames and the 3D meshes follow
+    page.screenshot(path=shots / "1-diagnosis.png")
+
+    run = app.state.run
+    expert = run.world.expert_action(task, task.scene)  # (4,) pick xy, place xy
+    assert run.demo_source == "clicks"
+    assert np.abs(run.demo.actions[0] - expert).max() < 0.02  # within 2 cm of the centres
+    assert run.demo.success
