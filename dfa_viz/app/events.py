@@ -26,8 +26,9 @@ def apply_event(state: LoopState, ev: dict, computed=None) -> None:
         state.world_name = world.name
         state.run = Run(world, ev["shift"], ev["seed"], task, rollout)
         state.demo_input = None
+        # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session it belongs to
         state.recording = state.out / (
-            f"{state.session.folder.name}-{world.name}-{ev['shift']}-seed{ev['seed']}.rrd"
+            f"{world.name}-{ev['shift']}-seed{ev['seed']}-{state.session.folder.name}.rrd"
         )
         state._recorded = -1
     elif kind == "judgement":

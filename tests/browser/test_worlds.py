@@ -40,6 +40,16 @@ def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
     page.get_by_text("edits tried").first.wait_for()
     page.screenshot(path=shots / "1-diagnosis.png")
 
+    result = app.state.run.result
+    if result.found and len(result.counterfactuals) > 1:  # choose the second minimal edit
+        second = result.counterfactuals[1].edit
+        page.get_by_role("combobox", name="minimal edit").click()
+        page.get_by_role("option", name=f"2. {second}").click()
+        for ch in second.ordered:  # the feedback controls follow the chosen edit
+            expect(page.get_by_text(f"{ch.slot}.{ch.concept}: {ch.old} → {ch.new}")).to_be_visible()
+        assert app.state.run.tie == 1
+        page.screenshot(path=shots / "2-second-tie.png")
+
     demo = app.state.run.demo
     assert demo.success
     assert [int(a) for a in demo.actions[:n]] == actions

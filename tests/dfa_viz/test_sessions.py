@@ -178,3 +178,82 @@ def test_cli_serve_on_a_malformed_session_says_one_line(tmp_path):
     ]
     assert "Traceback" not in proc.stderr + proc.stdout
     assert _snapshot(folder) == before
+
+
+def _wait(state, timeout_s: float = 300.0) -> None:
+    from dfa_viz.app.server import wait_idle
+
+    wait_idle(state, timeout_s=timeout_s)
+
+
+@pytest.mark.slow
+def test_replaying_a_session_rebuilds_the_loop_state(tmp_path, nav_policy):
+    from dfa_viz.app.server import open_state
+
+    state = open_state(session=tmp_path / "s", out=tmp_path, finetune_steps=20)
+    state.pick("nav2d", "distractor_ti", 0)
+    _wait(state)
+    state.judge(True)
+    state.demonstrate(expert=True)
+    _wait(state)
+    state.mark("distractor", "presence", relevant=False, acceptable=("present",))
+    assert state.finetune()
+    _wait(state)
+    before = state.snapshot().run
+    assert state.recording.is_file() and state.recording.parent == tmp_path
+    state.session.close()
+
+    again = open_state(session=tmp_path / "s", out=tmp_path)
+    run = again.snapshot().run
+    assert again.snapshot().stage == "adapted"
+    assert run.task == before.task and run.demo.equals(before.demo)
+    assert [c.edit for c in run.result.counterfactuals] == [
+        c.edit for c in before.result.counterfactuals
+    ]
+    assert run.counterfactual.equals(before.counterfactual)
+    assert run.marks == before.marks
+    assert run.adaptation.rollout.equals(before.adaptation.rollout)
+    assert run.adaptation.losses == pytest.approx(before.adaptation.losses, abs=1e-6)
+    assert (run.adaptation.success_before, run.adaptation.success_after) == (
+        before.adaptation.success_before,
+        before.adaptation.success_after,
+    )
+    again.session.close()
+
+
+def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
+    from dfa_viz.app.server import open_state
+
+    state = open_state(session=tmp_path / "s", out=tmp_path)
+    state.pick("nav2d", "object_ti", 0)
+    _wait(state)
+    state.judge(True)
+    state.demonstrate(expert=True)
+    _wait(state)
+    found = [c.edit for c in state.run.result.counterfactuals]
+    state.session.close()
+    log = tmp_path / "s" / LOG
+    lines = log.read_text().splitlines(keepends=True)
+    assert json.loads(lines[-1])["type"] == "search"
+    log.write_text("".join(lines[:-1]))  # the server died during the search
+
+    again = open_state(session=tmp_path / "s", out=tmp_path)
+    _wait(again)  # resuming started the search again
+    assert again.snapshot().stage == "feedback"
+    assert [c.edit for c in again.run.result.counterfactuals] == found
+    assert json.loads(log.read_text().splitlines()[-1])["type"] == "search"
+    again.session.close()
+
+
+def test_succeeded_ends_the_task(tmp_path, nav_policy):
+    from dfa_viz.app.server import open_state
+    from sim.core import UserError
+
+    state = open_state(session=tmp_path / "s", out=tmp_path)
+    state.pick("nav2d", "object_ti", 0)
+    _wait(state)
+    state.judge(False)
+    assert state.snapshot().stage == "solved"
+    with pytest.raises(UserError, match="the loop is at 'solved'"):
+        state.demonstrate(expert=True)
+    state.session.close()
