@@ -28,6 +28,7 @@ class Page:
         self._commands: list = []
         self._keys_for: int | None = None
         self._ties: tuple[str, ...] = ()
+        self._task_shown: int | None = None
         gui = client.gui
         client.gui.main_panel.dock_left()
         client.gui.main_panel.set_width(400)
@@ -153,6 +154,10 @@ class Page:
     def _draw_controls(self, view: View) -> None:
         busy = view.job is not None
         run, stage = view.run, view.stage
+        if run is not None and id(run.task) != self._task_shown:
+            self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
+            self.world.value, self.shift.value = run.world.name, run.shift
+            self.seed.value = run.seed
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
         self.error.visible = bool(view.error)

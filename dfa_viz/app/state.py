@@ -27,7 +27,6 @@ from dfa_viz.app.events import apply_event
 from dfa_viz.app.run import Job, Run, View, need
 from dfa_viz.app.sessions import Session, SessionError
 from dfa_viz.app.work import Policies
-from policy import save_policy
 from sim.core import UserError
 
 Listener = Callable[[set[str]], None]
@@ -359,24 +358,8 @@ class LoopState:
                 on_loss=on_loss,
                 on_phase=lambda text: self._progress(self.job.progress if self.job else 0, text),
             )
-            rollout_file = self.session.save_trajectory(adaptation.rollout, "finetuned")
-            policy_dir = self.session.next_name("policy")
-            save_policy(
-                adaptation.policy,
-                self.session.folder / policy_dir,
-                meta={"task_seed": run.task.seed},
-            )
-            self._commit(
-                "finetune",
-                adaptation,
-                feedback=feedback.to_list(),
-                n_augmented=adaptation.n_augmented,
-                losses=[round(v, 6) for v in adaptation.losses],
-                success_before=adaptation.success_before,
-                success_after=adaptation.success_after,
-                rollout_file=rollout_file,
-                policy_dir=policy_dir,
-            )
+            fields = work.save_adaptation(self.session, adaptation, run.task)
+            self._commit("finetune", adaptation, **fields)
             self._notify({"stage"})
             self._progress(1.0, "writing the recording")
             self.write_recording()

@@ -16,7 +16,15 @@ from typing import Any
 import numpy as np
 
 from dfa_viz.recording import Recorder
-from policy import Policy, augment, base_policy, evaluate, failing_test_task, finetune
+from policy import (
+    Policy,
+    augment,
+    base_policy,
+    evaluate,
+    failing_test_task,
+    finetune,
+    save_policy,
+)
 from policy.evaluate import N_EVAL
 from policy.train import FINETUNE, TrainConfig
 from search import Candidate, SearchConfig, SearchResult, counterfactual_search
@@ -162,6 +170,23 @@ def adapt(
     after = evaluate(world, tuned, task, n=n_eval, seed=seed)
     rollout = world.rollout(task, tuned)
     return Adaptation(feedback, len(augmented), tuple(losses), before, after, rollout, tuned)
+
+
+def save_adaptation(session, adaptation: Adaptation, task: Task) -> dict[str, Any]:
+    """Write the finetuned rollout and checkpoint next to the session log; returns the fields
+    of the "finetune" event that names them."""
+    rollout_file = session.save_trajectory(adaptation.rollout, "finetuned")
+    policy_dir = session.next_name("policy")
+    save_policy(adaptation.policy, session.folder / policy_dir, meta={"task_seed": task.seed})
+    return {
+        "feedback": adaptation.feedback.to_list(),
+        "n_augmented": adaptation.n_augmented,
+        "losses": [round(v, 6) for v in adaptation.losses],
+        "success_before": adaptation.success_before,
+        "success_after": adaptation.success_after,
+        "rollout_file": rollout_file,
+        "policy_dir": policy_dir,
+    }
 
 
 def feedback_for(edit: Edit | None, marks: dict[tuple[str, str], Label]) -> Feedback:
