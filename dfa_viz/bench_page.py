@@ -1,6 +1,7 @@
 """Speed of the feedback page, measured in Chromium (issue targets in brackets):
 
-    page load -> interactive           [<= 3 s]    goto until "Load task" is enabled
+    page load -> interactive           [<= 3 s]    goto until "Load task" is enabled (and,
+                                                   reported too, until the diagnosis is drawn)
     slider move -> updated images      [<= 100 ms] pointerdown on the slider track until the
                                                    new strip image has loaded, timed in the page
     nav2d finetune round trip          [<= 30 s]   click "Augment & finetune" until the
@@ -78,19 +79,24 @@ def bench_page(*, loads: int = 3, moves: int = 12, finetune: bool = True) -> dic
 
 
 def _measure(browser, app, *, loads: int, moves: int, finetune: bool) -> dict:
-    load_s = []
+    load_s, drawn_s = [], []
     for _ in range(loads):
         page = browser.new_page(viewport={"width": 1600, "height": 1000})
         t0 = time.perf_counter()
         page.goto(app.url)
-        button = page.get_by_role("button", name="Load task")
-        button.wait_for(timeout=60_000)
         page.wait_for_function(
             "() => [...document.querySelectorAll('button')]"
-            ".some(b => b.textContent.includes('Load task') && !b.disabled)"
+            ".some(b => b.textContent.includes('Load task') && !b.disabled)",
+            polling=20,
+            timeout=60_000,
         )
-        page.get_by_text("Counterfactual found").first.wait_for(timeout=60_000)
         load_s.append(time.perf_counter() - t0)
+        page.wait_for_function(
+            "() => document.body.innerText.includes('Counterfactual found')",
+            polling=20,
+            timeout=60_000,
+        )
+        drawn_s.append(time.perf_counter() - t0)
         page.close()
 
     page = browser.new_page(viewport={"width": 1600, "height": 1000})
@@ -114,6 +120,7 @@ def _measure(browser, app, *, loads: int, moves: int, finetune: bool) -> dict:
 
     out = {
         "page_load_to_interactive_s": round(statistics.median(load_s), 3),
+        "page_load_to_diagnosis_drawn_s": round(statistics.median(drawn_s), 3),
         "slider_to_images_ms_median": round(statistics.median(latencies_ms), 1),
         "slider_to_images_ms_max": round(max(latencies_ms), 1),
     }

@@ -29,7 +29,7 @@ class App:
         for page in list(self.pages.values()):
             page.close()
         self.server.stop()
-        self.state.session.close()
+        self.state.close()
 
 
 def _check_world(world: str) -> None:
@@ -76,7 +76,7 @@ def start(
     try:
         server = viser.ViserServer(host=host, port=port, label="DFA", verbose=False)
     except OSError as e:
-        state.session.close()
+        state.close()
         raise UserError(f"cannot serve on {host}:{port} ({e.strerror})") from None
     server.gui.configure_theme(show_share_button=False, brand_color=(28, 126, 214))
     app = App(server, state, f"http://{host}:{server.get_port()}")
@@ -149,7 +149,7 @@ def demo(
         state.demonstrate(expert=True)
         wait_idle(state)
     except BaseException:
-        state.session.close()
+        state.close()
         raise
     app = start(port=port, host=host, state=state)
     if block:

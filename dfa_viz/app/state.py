@@ -74,7 +74,10 @@ class LoopState:
 
     def _input_loop(self) -> None:
         while True:
-            fn, on_error = self._inputs.get()
+            item = self._inputs.get()
+            if item is None:  # closed
+                return
+            fn, on_error = item
             try:
                 fn()
             except UserError as e:
@@ -82,6 +85,12 @@ class LoopState:
             except Exception as e:
                 traceback.print_exc()
                 on_error(f"{type(e).__name__}: {e}")
+
+    def close(self) -> None:
+        """Stop taking input and release the session folder (a running job is abandoned; its
+        event was not written, so a restart redoes or offers it again)."""
+        self._inputs.put(None)
+        self.session.close()
 
     # -- subscribers --------------------------------------------------------------------------
     def subscribe(self, fn: Listener) -> Callable[[], None]:

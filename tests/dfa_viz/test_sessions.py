@@ -201,7 +201,7 @@ def test_replaying_a_session_rebuilds_the_loop_state(tmp_path, nav_policy):
     _wait(state)
     before = state.snapshot().run
     assert state.recording.is_file() and state.recording.parent == tmp_path
-    state.session.close()
+    state.close()
 
     again = open_state(session=tmp_path / "s", out=tmp_path)
     run = again.snapshot().run
@@ -218,7 +218,7 @@ def test_replaying_a_session_rebuilds_the_loop_state(tmp_path, nav_policy):
         before.adaptation.success_before,
         before.adaptation.success_after,
     )
-    again.session.close()
+    again.close()
 
 
 def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
@@ -231,7 +231,7 @@ def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
     state.demonstrate(expert=True)
     _wait(state)
     found = [c.edit for c in state.run.result.counterfactuals]
-    state.session.close()
+    state.close()
     log = tmp_path / "s" / LOG
     lines = log.read_text().splitlines(keepends=True)
     assert json.loads(lines[-1])["type"] == "search"
@@ -242,7 +242,7 @@ def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
     assert again.snapshot().stage == "feedback"
     assert [c.edit for c in again.run.result.counterfactuals] == found
     assert json.loads(log.read_text().splitlines()[-1])["type"] == "search"
-    again.session.close()
+    again.close()
 
 
 def test_succeeded_ends_the_task(tmp_path, nav_policy):
@@ -256,4 +256,4 @@ def test_succeeded_ends_the_task(tmp_path, nav_policy):
     assert state.snapshot().stage == "solved"
     with pytest.raises(UserError, match="the loop is at 'solved'"):
         state.demonstrate(expert=True)
-    state.session.close()
+    state.close()
