@@ -1,7 +1,10 @@
 """Tabletop tasks: the training task, the five shifts, fresh tasks from R', and placements.
 
 Pure Python on scenes (no MuJoCo). Objects sit at the centres of five areas of the table
-(four quadrants and the centre), upright, rotation 0.
+(four quadrants and the centre), upright, rotation 0. Training layouts put the object and the
+goal in two different quadrants that vary across seeds, so a policy cloned on them must tell the
+object from the goal by appearance; the centre is never used in training, which is what the
+`other` shift uses.
 """
 
 from __future__ import annotations
@@ -37,6 +40,16 @@ AREAS: dict[str, tuple[float, float]] = {
     "centre": (0.0, 0.0),
 }
 OBJECT_AREA, GOAL_AREA = "top-left", "bottom-right"
+QUADRANTS = ("top-left", "top-right", "bottom-right", "bottom-left")  # clockwise
+UNSEEN_AREA = "centre"  # no training layout uses it
+# Training layouts (object area, goal area): the four diagonal ones and the four where the goal
+# is the next quadrant clockwise. Given where either one is, the other can be in two places, so
+# the policy has to find both by their looks. Seed 0 is the canonical layout.
+TRAIN_LAYOUTS: tuple[tuple[str, str], ...] = (
+    *((q, QUADRANTS[(i + 2) % 4]) for i, q in enumerate(QUADRANTS)),
+    *((q, QUADRANTS[(i + 1) % 4]) for i, q in enumerate(QUADRANTS)),
+)
+assert TRAIN_LAYOUTS[0] == (OBJECT_AREA, GOAL_AREA)
 TRAIN_OBJECT = ("flower", "red")  # (shape, colour)
 TRAIN_GOAL = ("pan", "blue")
 DISTRACTORS = ("distractor0", "distractor1")
@@ -110,9 +123,21 @@ def train_reward() -> Reward:
     )
 
 
+def train_layout(seed: int) -> tuple[str, str]:
+    """(object area, goal area) of training seed `seed`: TRAIN_LAYOUTS in turn."""
+    return TRAIN_LAYOUTS[seed % len(TRAIN_LAYOUTS)]
+
+
 def train_task(seed: int = 0) -> Task:
-    """Fixed shapes and colours: the object top-left, the goal bottom-right, no distractor."""
-    return Task(WORLD, make_scene(), train_reward(), "train", seed)
+    """Fixed shapes and colours, no distractor; the object and the goal in the quadrants of
+    train_layout(seed) (seed 0: the object top-left, the goal bottom-right)."""
+    oa, ga = train_layout(seed)
+    return Task(WORLD, make_scene(obj_area=oa, goal_area=ga), train_reward(), "train", seed)
+
+
+def _layout(rng: np.random.Generator) -> tuple[str, str]:
+    """A training layout drawn at random: test tasks keep the training positions."""
+    return TRAIN_LAYOUTS[rng.integers(len(TRAIN_LAYOUTS))]
 
 
 def _pick(rng: np.random.Generator, values: Sequence[str], exclude: Sequence[str] = ()) -> str:
@@ -121,6 +146,7 @@ def _pick(rng: np.random.Generator, values: Sequence[str], exclude: Sequence[str
 
 
 def _object_shift(shift: str, seed: int, rng, colours: Sequence[str]) -> Task:
+    oa, ga = _layout(rng)
     looks = {"object": list(TRAIN_OBJECT), "goal": list(TRAIN_GOAL)}
     slot = ("object", "goal")[rng.integers(2)]
     concept = ("shape", "colour")[rng.integers(2)]
@@ -146,17 +172,19 @@ def _object_shift(shift: str, seed: int, rng, colours: Sequence[str]) -> Task:
     else:
         text = f"put the {_describe(o)} on the {_describe(g)}"
     reward = Reward(text, frozenset(relevant), tuple(allowed), success=SUCCESS)
-    return Task(WORLD, make_scene(o, g), reward, shift, seed, (slot, concept))
+    scene = make_scene(o, g, obj_area=oa, goal_area=ga)
+    return Task(WORLD, scene, reward, shift, seed, (slot, concept))
 
 
 def _distractor_shift(shift: str, seed: int, rng, colours: Sequence[str]) -> Task:
+    oa, ga = _layout(rng)
     n = 1 + int(rng.random() < 0.5)
-    areas = [a for a in AREAS if a not in (OBJECT_AREA, GOAL_AREA)]
+    areas = [a for a in AREAS if a not in (oa, ga)]
     chosen = [areas[i] for i in rng.permutation(len(areas))[:n]]
     shapes = [s for s in SHAPES if s not in (TRAIN_OBJECT[0], TRAIN_GOAL[0])]
     cols = [c for c in colours if c not in (TRAIN_OBJECT[1], TRAIN_GOAL[1])]
     ds = [(_pick(rng, shapes), _pick(rng, cols), area) for area in chosen]
-    scene = make_scene(distractors=ds)
+    scene = make_scene(obj_area=oa, goal_area=ga, distractors=ds)
     base = train_reward()
     if shift == "distractor_ti":
         allowed = list(base.allowed)
@@ -200,11 +228,14 @@ def test_task(shift: str, seed: int, colours: Sequence[str]) -> Task:
         return _object_shift(shift, seed, rng, colours)
     if shift.startswith("distractor"):
         return _distractor_shift(shift, seed, rng, colours)
-    # other: the object or the goal moves to another area; no concept edit explains it
-    free = [a for a in AREAS if a not in (OBJECT_AREA, GOAL_AREA)]
-    area = free[rng.integers(len(free))]
-    moved = "object" if rng.integers(2) == 0 else "goal"
-    scene = make_scene(obj_area=area) if moved == "object" else make_scene(goal_area=area)
+    # other: the object or the goal of a training layout moves to the centre, where no
+    # training task put anything; no concept edit explains it
+    oa, ga = _layout(rng)
+    if rng.integers(2) == 0:
+        oa = UNSEEN_AREA
+    else:
+        ga = UNSEEN_AREA
+    scene = make_scene(obj_area=oa, goal_area=ga)
     base = train_reward()
     reward = Reward(
         base.instruction + ", wherever they are", base.relevant, base.allowed, success=SUCCESS

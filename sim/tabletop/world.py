@@ -40,6 +40,9 @@ class TabletopWorld(World):
     discrete = False
     action_dim = 4
     epsilon = 0.06
+    has_3d = True  # the recorder adds dfa_viz.scene3d's meshes and poses
+    # about 440 single edits and 95,000 pairs: a size-2 search stops at its first valid edit
+    search_first_only = True
 
     def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]

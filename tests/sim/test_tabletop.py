@@ -167,12 +167,23 @@ def _rest(scene, slot):
 
 # -- tasks ----------------------------------------------------------------------------------------
 def test_training_task_layout(world):
-    t = world.train_task(3)
+    t = world.train_task(0)
     assert t.scene.obj("object").pos[:2] == TK.AREAS["top-left"]
     assert t.scene.obj("goal").pos[:2] == TK.AREAS["bottom-right"]
-    assert not t.scene.obj("distractor0").present and not t.scene.obj("distractor1").present
-    assert t.scene.obj("object").value("shape") in MANIPULATED
-    assert t.scene.obj("goal").value("shape") in GOALS
+    layouts = set()
+    for seed in range(10):  # the ten demonstrations the base policy is cloned on
+        t = world.train_task(seed)
+        assert t == world.train_task(seed)
+        assert not t.scene.obj("distractor0").present and not t.scene.obj("distractor1").present
+        assert t.scene.obj("object").value("shape") in MANIPULATED
+        assert t.scene.obj("goal").value("shape") in GOALS
+        areas = (TK._area_of(t.scene.obj("object")), TK._area_of(t.scene.obj("goal")))
+        assert areas[0] != areas[1] and TK.UNSEEN_AREA not in areas
+        assert t.scene == TK.make_scene(obj_area=areas[0], goal_area=areas[1])
+        layouts.add(areas)
+    # they cover every training layout: the object and the goal each visit all four quadrants
+    assert layouts == set(TK.TRAIN_LAYOUTS)
+    assert {a for a, _ in layouts} == {g for _, g in layouts} == set(TK.QUADRANTS)
 
 
 def test_shifts_follow_the_reward_conventions(world):
@@ -204,11 +215,12 @@ def test_shifts_follow_the_reward_conventions(world):
                     assert r.allowed_values("distractor0", PRESENCE) == (PRESENT,)
             else:
                 assert t.cause is None
-                moved = [
-                    o.pos[:2] != world.train_task().scene.obj(o.slot).pos[:2]
-                    for o in t.scene.objects[:2]
-                ]
-                assert sum(moved) == 1
+                areas = [TK._area_of(o) for o in t.scene.objects[:2]]
+                assert areas.count(TK.UNSEEN_AREA) == 1  # one moved where training never went
+                assert any(a in layout for layout in TK.TRAIN_LAYOUTS for a in areas)
+            if shift != "other":
+                layout = (TK._area_of(t.scene.obj("object")), TK._area_of(t.scene.obj("goal")))
+                assert layout in TK.TRAIN_LAYOUTS
 
 
 def test_fresh_tasks_draw_from_the_reward(world):

@@ -1,0 +1,147 @@
+"""The tabletop in 3D for the recording: each object's mesh once, its pose over time.
+
+Layout under `scene3d/<rollout>/` (rollout: failed, demonstration, counterfactual, finetuned):
+    table           static Boxes3D, the table top (its top face at z = 0)
+    view            static LineStrips3D, the square of the table the 80x80 camera sees
+    <slot>          static Mesh3D in the object's body frame (metres, bottom at z = 0), and a
+                    Transform3D per row: on the `step` timeline the pose at each step of the
+                    rollout, on the `sim_time` timeline (seconds of simulated time) the carry
+                    and the settling of each pick-and-place, one row per 20 ms
+    action          Arrows3D from the pick point to the place point, on the `step` timeline
+
+The meshes come from sim.tabletop.meshes.shape_mesh, the same geometry MuJoCo simulates and
+renders (the web page reuses it too).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from sim.core import Scene, Trajectory
+
+ROOT = "scene3d"
+VIEWS = ("failed", "counterfactual")  # the two rollouts the user compares in 3D
+FRAME_EVERY = 5  # physics steps between recorded poses (5 x 4 ms = 20 ms)
+ARROW_Z_M = 0.15  # the action arrow floats this high above the table
+
+
+def views() -> list:
+    """Blueprint views: the failed rollout and the counterfactual in 3D."""
+    return [rrb.Spatial3DView(origin=f"{ROOT}/{name}", name=f"{name} (3D)") for name in VIEWS]
+
+
+@lru_cache(maxsize=64)
+def _mesh(shape: str, colour: str) -> rr.Mesh3D:
+    """The display mesh of `shape` in `colour`, flat shaded (every face its own corners)."""
+    from sim.tabletop import colours as C
+    from sim.tabletop import textures as T
+    from sim.tabletop.meshes import shape_mesh
+    from sim.tabletop.pose import rgba
+
+    mesh = shape_mesh(shape)
+    corners = mesh.vertices[mesh.faces].reshape(-1, 3).astype(np.float32)  # (3F, 3)
+    normals = np.repeat(mesh.face_normals, 3, axis=0).astype(np.float32)  # (3F, 3)
+    triangles = np.arange(len(corners), dtype=np.uint32).reshape(-1, 3)  # (F, 3)
+    if C.is_plain(colour):
+        return rr.Mesh3D(
+            vertex_positions=corners,
+            triangle_indices=triangles,
+            vertex_normals=normals,
+            albedo_factor=rgba(colour),
+        )
+    # a texture, projected from above as in the MuJoCo model (one tile per TEX_M metres);
+    # the image holds 3x3 tiles so that no texture wrap mode is needed for objects < 3 TEX_M
+    tiles = np.tile(T.texture(colour), (3, 3, 1))  # (3 TEX_PX, 3 TEX_PX, 3) uint8
+    uv = (corners[:, :2] / T.TEX_M + 0.5 + 1.0) / 3.0  # (3F, 2) in [0, 1]
+    return rr.Mesh3D(
+        vertex_positions=corners,
+        triangle_indices=triangles,
+        vertex_normals=normals,
+        vertex_texcoords=uv.astype(np.float32),
+        albedo_texture=tiles,
+    )
+
+
+def _static_table(rec: rr.RecordingStream, base: str) -> None:
+    from sim.tabletop.colours import TABLE_RGB
+    from sim.tabletop.pose import TABLE_HALF_M, TABLE_THICKNESS_M
+    from sim.tabletop.tasks import VIEW_HALF_M
+
+    half = (TABLE_HALF_M, TABLE_HALF_M, TABLE_THICKNESS_M / 2)
+    rec.log(
+        f"{base}/table",
+        rr.Boxes3D(
+            half_sizes=[half],
+            centers=[(0.0, 0.0, -TABLE_THICKNESS_M / 2)],
+            colors=[TABLE_RGB],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+    v = VIEW_HALF_M
+    square = [(-v, -v, 0.001), (v, -v, 0.001), (v, v, 0.001), (-v, v, 0.001), (-v, -v, 0.001)]
+    rec.log(
+        f"{base}/view",
+        rr.LineStrips3D([square], colors=[(255, 255, 255)], radii=0.002),
+        static=True,
+    )
+
+
+def _transform(pos, quat_wxyz) -> rr.Transform3D:
+    w, x, y, z = (float(q) for q in quat_wxyz)
+    return rr.Transform3D(
+        translation=[float(p) for p in pos[:3]], quaternion=rr.Quaternion(xyzw=[x, y, z, w])
+    )
+
+
+def _log_step_poses(rec: rr.RecordingStream, base: str, scene: Scene, step: int) -> None:
+    rec.reset_time()
+    rec.set_time("step", sequence=step)
+    for o in scene.objects:
+        if o.present:
+            rec.log(f"{base}/{o.slot}", _transform(o.pos[:3], o.pos[3:7]))
+
+
+def log_rollout(rec: rr.RecordingStream, world, name: str, traj: Trajectory) -> None:
+    """Log one tabletop rollout under scene3d/<name>: meshes once, poses over time.
+
+    world: the TabletopWorld the rollout ran in (its pick-and-place is simulated again, with
+    poses recorded every 20 ms: the simulation is deterministic, so it ends where traj does).
+    traj: scenes (T+1,), actions float32 (T, 4) = (pick_x, pick_y, place_x, place_y) metres.
+    """
+    from sim.tabletop.pose import step_with_frames
+
+    base = f"{ROOT}/{name}"
+    _static_table(rec, base)
+    first = traj.scenes[0]
+    for o in first.objects:
+        if o.present:
+            rec.log(f"{base}/{o.slot}", _mesh(o.value("shape"), o.value("colour")), static=True)
+    actions = np.asarray(traj.actions, np.float64).reshape(traj.horizon, -1)  # (T, 4)
+    t0_s = 0.0
+    for t in range(traj.horizon + 1):
+        _log_step_poses(rec, base, traj.scenes[t], t)
+        if t == traj.horizon or world.done(traj.scenes[t]):
+            continue
+        a = actions[t]
+        rec.log(
+            f"{base}/action",
+            rr.Arrows3D(
+                origins=[(a[0], a[1], ARROW_Z_M)],
+                vectors=[(a[2] - a[0], a[3] - a[1], 0.0)],
+                colors=[(255, 255, 255)],
+                radii=0.004,
+            ),
+        )
+        frames, _ = step_with_frames(world, traj.scenes[t], a, every=FRAME_EVERY)
+        rec.reset_time()
+        for f, time_s in enumerate(frames.times_s):
+            rec.set_time("sim_time", duration=t0_s + float(time_s))
+            for k, slot in enumerate(frames.slots):
+                rec.log(f"{base}/{slot}", _transform(frames.pos[f, k], frames.quat[f, k]))
+        t0_s += float(frames.times_s[-1]) if len(frames.times_s) else 0.0
+    rec.reset_time()
