@@ -95,20 +95,28 @@ def bench(worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop"), repeats: i
     run_bench(worlds, repeats=repeats)
 
 
-def demo(world: str = "nav2d", shift: str = "distractor_ti", seed: int = 0) -> None:
-    """Run the loop on a default scenario and say where the recording is.
+def demo(
+    world: str = "nav2d",
+    shift: str = "distractor_ti",
+    seed: int = 0,
+    port: int = 8080,
+    host: str = "127.0.0.1",
+) -> None:
+    """Open the feedback page on a default scenario, the diagnosis already computed.
+
+    The failed rollout, the expert's demonstration and the counterfactual are ready to scrub;
+    mark the edited concepts TI or TR and press "Augment & finetune". Ctrl-C stops the server.
 
     Args:
         world: the world of the scenario.
         shift: the shift of the scenario.
         seed: the seed of the scenario.
+        port: the port to try first.
+        host: the interface to bind.
     """
-    from dfa_viz.report import format_report
-    from dfa_viz.session import run_once
+    from dfa_viz.app import demo as demo_page
 
-    report = run_once(world, shift, seed, out=Path("recordings"), progress=True)
-    print(format_report(report))
-    print(f"\nOpen the recording with: rerun {report.recording}")
+    demo_page(world, shift, seed, port=port, host=host)
 
 
 def serve(
