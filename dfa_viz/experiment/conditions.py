@@ -1,0 +1,200 @@
+"""The four conditions of the paper's finetuning comparison and who picks which concept.
+
+A *user concept* is what a person names when they say "this does not matter": one concept of
+one kind of object. Worlds with several interchangeable slots (DoorKey's lava0..lava2, the
+tabletop's distractor0..distractor1) group them: "lava.presence" covers the presence of every
+lava tile, so "the lava does not matter" is one answer, as it is for a person.
+"""
+
+from __future__ import annotations
+
+import re
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.core import PRESENCE, Task, World
+
+CONDITIONS = ("nh_random", "baseline_h", "cf_h", "oracle")
+CONDITION_NAMES = {
+    "nh_random": "NH-random",
+    "baseline_h": "Baseline H",
+    "cf_h": "CF H",
+    "oracle": "Oracle",
+}
+SHIFT_KINDS = ("object", "distractor")
+WORLDS = ("nav2d", "doorkey", "tabletop")
+PAPER_BUDGETS = (5, 10, 25, 50, 75, 100)
+
+# How often the paper's users named the right concept (design section 9), as probabilities:
+# (world, shift kind) -> (without counterfactuals: Baseline H, with counterfactuals: CF H).
+ACCURACY: dict[tuple[str, str], tuple[float, float]] = {
+    ("nav2d", "object"): (0.28, 0.97),
+    ("doorkey", "object"): (0.12, 0.93),
+    ("tabletop", "object"): (0.03, 0.94),
+    ("nav2d", "distractor"): (0.14, 0.94),
+    ("doorkey", "distractor"): (0.32, 0.88),
+    ("tabletop", "distractor"): (0.09, 0.93),
+}
+
+# The paper's finetuning success at PAPER_BUDGETS trajectories (design section 9).
+PAPER: dict[tuple[str, str, str], tuple[float, ...]] = {
+    ("nav2d", "object", "nh_random"): (0.2, 0.3, 0.9, 1, 1, 1),
+    ("nav2d", "object", "baseline_h"): (0.1, 0.1, 0.4, 0.8, 1, 1),
+    ("nav2d", "object", "cf_h"): (0.7, 0.9, 1, 1, 1, 1),
+    ("nav2d", "object", "oracle"): (0.8, 0.9, 1, 1, 1, 1),
+    ("doorkey", "object", "nh_random"): (0, 0, 0.2, 0.3, 0.6, 0.7),
+    ("doorkey", "object", "baseline_h"): (0, 0, 0, 0.2, 0.2, 0.3),
+    ("doorkey", "object", "cf_h"): (0.1, 0.1, 0.4, 0.7, 0.9, 1),
+    ("doorkey", "object", "oracle"): (0.1, 0.2, 0.5, 0.9, 1, 1),
+    ("tabletop", "object", "nh_random"): (0, 0, 0.1, 0.1, 0.2, 0.2),
+    ("tabletop", "object", "baseline_h"): (0, 0, 0, 0.1, 0.1, 0.1),
+    ("tabletop", "object", "cf_h"): (0, 0, 0.4, 0.6, 0.7, 0.8),
+    ("tabletop", "object", "oracle"): (0, 0.1, 0.5, 0.8, 0.9, 1),
+    ("nav2d", "distractor", "nh_random"): (0, 0.1, 0.3, 0.7, 1, 1),
+    ("nav2d", "distractor", "baseline_h"): (0.2, 0.4, 0.7, 1, 1, 1),
+    ("nav2d", "distractor", "cf_h"): (0.9, 1, 1, 1, 1, 1),
+    ("nav2d", "distractor", "oracle"): (0.9, 1, 1, 1, 1, 1),
+    ("doorkey", "distractor", "nh_random"): (0, 0, 0.1, 0.3, 0.6, 0.8),
+    ("doorkey", "distractor", "baseline_h"): (0, 0, 0.1, 0.4, 0.6, 0.7),
+    ("doorkey", "distractor", "cf_h"): (0.1, 0.2, 0.6, 0.7, 1, 1),
+    ("doorkey", "distractor", "oracle"): (0.2, 0.4, 0.5, 0.9, 1, 1),
+    ("tabletop", "distractor", "nh_random"): (0, 0, 0, 0, 0.1, 0.1),
+    ("tabletop", "distractor", "baseline_h"): (0, 0, 0, 0.1, 0.1, 0.1),
+    ("tabletop", "distractor", "cf_h"): (0, 0.2, 0.5, 0.8, 0.9, 1),
+    ("tabletop", "distractor", "oracle"): (0, 0.3, 0.7, 0.9, 1, 1),
+}
+
+
+def paper_value(world: str, shift: str, condition: str, budget: int) -> float | None:
+    """The paper's number for this cell, or None where the paper has none."""
+    if budget not in PAPER_BUDGETS:
+        return None
+    return PAPER[(world, shift, condition)][PAPER_BUDGETS.index(budget)]
+
+
+def ti_shift(kind: str) -> str:
+    """The task-irrelevant shift an experiment of this kind adapts to: object -> object_ti."""
+    assert kind in SHIFT_KINDS, f"shift kind is one of {SHIFT_KINDS}, not {kind!r}"
+    return f"{kind}_ti"
+
+
+@dataclass(frozen=True)
+class UserConcept:
+    """One concept as a person names it, and the (slot, concept) pairs it covers."""
+
+    name: str
+    """E.g. "goal.colour" or "lava.presence"."""
+    members: tuple[tuple[str, str], ...]
+    """The (slot, concept) pairs of the concept space it covers (concept may be "presence")."""
+
+    @property
+    def is_presence(self) -> bool:
+        return self.members[0][1] == PRESENCE
+
+
+def kind_of(slot: str) -> str:
+    """The kind of object a slot holds: its name without a trailing number (lava2 -> lava)."""
+    return re.sub(r"\d+$", "", slot)
+
+
+def user_concepts(world: World) -> tuple[UserConcept, ...]:
+    """Every user concept of the world, in the order of its concept space."""
+    groups: dict[str, list[tuple[str, str]]] = {}
+    for slot in world.space.slots:
+        names = ([PRESENCE] if slot.optional else []) + [c.name for c in slot.concepts]
+        for concept in names:
+            groups.setdefault(f"{kind_of(slot.name)}.{concept}", []).append((slot.name, concept))
+    return tuple(UserConcept(name, tuple(members)) for name, members in groups.items())
+
+
+def visible_concepts(world: World, task: Task) -> tuple[UserConcept, ...]:
+    """The concepts a person can point at in the test scene: the looks of objects that are
+    there, and the presence of any optional object (adding one is always visible). The looks
+    of an object that is not in the scene are not something anyone would name."""
+    out = []
+    for uc in user_concepts(world):
+        members = tuple((s, c) for s, c in uc.members if c == PRESENCE or task.scene.obj(s).present)
+        if members:
+            out.append(UserConcept(uc.name, members))
+    return tuple(out)
+
+
+def concept_named(concepts: tuple[UserConcept, ...], name: str) -> UserConcept:
+    for uc in concepts:
+        if uc.name == name:
+            return uc
+    raise KeyError(f"no concept {name!r} among {[c.name for c in concepts]}")
+
+
+def right_concept(world: World, task: Task) -> str:
+    """The name of the user concept the shift generator changed (the task's planted cause)."""
+    assert task.cause is not None, f"{task.shift} task has no planted cause"
+    slot, concept = task.cause
+    return f"{kind_of(slot)}.{concept}"
+
+
+def concept_of_change(slot: str, concept: str) -> str:
+    return f"{kind_of(slot)}.{concept}"
+
+
+def stable_int(*parts: object) -> int:
+    """A process-independent integer from names (Python's hash() is salted per process)."""
+    return zlib.crc32("/".join(map(str, parts)).encode())
+
+
+def user_rng(world: str, shift: str, seed: int) -> np.random.Generator:
+    """The simulated users' randomness for one task. Shared by Baseline H and CF H (common
+    random numbers): the same draw decides whether either user is right, so CF H is right
+    whenever Baseline H is and its search offered the right concept."""
+    return np.random.default_rng([seed, stable_int("user", world, shift)])
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Which concept a condition augments, and why."""
+
+    concept: str | None
+    """The user's concept; None for NH-random (a random concept per augmented trajectory)."""
+    correct: bool
+    """True when it is the right concept."""
+
+
+def choose(
+    condition: str,
+    *,
+    world: str,
+    shift: str,
+    seed: int,
+    right: str,
+    visible: tuple[str, ...],
+    offered: tuple[str, ...] | None = None,
+) -> Choice:
+    """The concept a condition augments (independent of the budget).
+
+    nh_random: no user; each augmented trajectory edits a concept drawn at random.
+    oracle: always the right concept.
+    baseline_h: the right concept with the paper's accuracy without counterfactuals; else a
+        random one of the other visible concepts (so the rate of right answers is the paper's).
+    cf_h: only when the counterfactual search offered the right concept (`offered`: the
+        concepts of its best edit, empty when it found none) can the user name it, and then
+        with the paper's accuracy with counterfactuals; else a random other visible concept.
+    """
+    if condition == "nh_random":
+        return Choice(None, False)
+    if condition == "oracle":
+        return Choice(right, True)
+    rng = user_rng(world, shift, seed)
+    u = rng.random()
+    wrong = [c for c in visible if c != right]
+    fallback = wrong[int(rng.integers(len(wrong)))] if wrong else right
+    without, with_cf = ACCURACY[(world, shift)]
+    if condition == "baseline_h":
+        ok = u < without
+    elif condition == "cf_h":
+        assert offered is not None, "CF H needs the concepts the search offered"
+        ok = right in offered and u < with_cf
+    else:
+        raise ValueError(f"unknown condition {condition!r}; accepted: {', '.join(CONDITIONS)}")
+    return Choice(right, True) if ok else Choice(fallback, fallback == right)

@@ -1,0 +1,151 @@
+"""The whole comparison: plan the runs, skip finished ones, run the rest, write the reports."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dfa_viz.experiment.backends import BACKENDS, run_specs
+from dfa_viz.experiment.conditions import CONDITIONS, SHIFT_KINDS, WORLDS
+from dfa_viz.experiment.figures import write_plots, write_rrd
+from dfa_viz.experiment.results import ResultsFolder, write_table
+from dfa_viz.experiment.runner import RunSpec, Settings
+from sim.core import UserError
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Which runs an experiment consists of (the product of all its lists)."""
+
+    worlds: tuple[str, ...] = WORLDS
+    shifts: tuple[str, ...] = SHIFT_KINDS
+    conditions: tuple[str, ...] = CONDITIONS
+    budgets: tuple[int, ...] = (5, 10, 25, 50, 75, 100)
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+
+    def __post_init__(self) -> None:
+        for name, values, accepted in (
+            ("world", self.worlds, WORLDS),
+            ("shift", self.shifts, SHIFT_KINDS),
+            ("condition", self.conditions, CONDITIONS),
+        ):
+            if not values:
+                raise UserError(f"at least one {name} is needed; accepted: {', '.join(accepted)}")
+            bad = [v for v in values if v not in accepted]
+            if bad:
+                raise UserError(f"unknown {name} {bad[0]!r}; accepted: {', '.join(accepted)}")
+        if not self.budgets or min(self.budgets) < 1:
+            raise UserError(
+                f"budgets are numbers of finetuning trajectories, at least 1: {self.budgets}"
+            )
+        if not self.seeds or min(self.seeds) < 0:
+            raise UserError(f"seeds are non-negative integers: {self.seeds}")
+
+    def specs(self) -> list[RunSpec]:
+        """Every run, ordered so that the runs of one task (world, shift, seed) are adjacent."""
+        return [
+            RunSpec(w, s, c, b, seed)
+            for w in self.worlds
+            for s in self.shifts
+            for seed in self.seeds
+            for c in self.conditions
+            for b in sorted(set(self.budgets))
+        ]
+
+
+@dataclass(frozen=True)
+class Summary:
+    out: Path
+    planned: int
+    skipped: int
+    executed: int
+    wall_s: float
+    reports: tuple[Path, ...]
+
+
+def _warm_base_policies(worlds: Sequence[str]) -> None:
+    """Train (or load) each base policy once here, with one torch thread as the workers use,
+    so that workers find them cached instead of racing to train them."""
+    import torch
+
+    from policy import base_policy
+    from sim import get_world
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for w in worlds:
+            base_policy(get_world(w))
+    finally:
+        torch.set_num_threads(threads)
+
+
+def run_experiment(
+    plan: Plan,
+    *,
+    out: Path,
+    settings: Settings = Settings(),
+    backend: str = "local",
+    workers: int = 2,
+    ray_address: str | None = None,
+    progress: bool = True,
+) -> Summary:
+    """Run every planned run not yet in `out`, then write the table, plots and recording."""
+    if backend not in BACKENDS:
+        raise UserError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
+    folder = ResultsFolder(out, settings)
+    specs = plan.specs()
+    finished = folder.done()
+    todo = [s for s in specs if s.key not in finished]
+    t0 = time.perf_counter()
+    executed = 0
+    if todo:
+        _warm_base_policies(plan.worlds)
+        bar = _progress(len(specs), len(specs) - len(todo), progress)
+
+        def on_result(result: dict[str, object]) -> None:
+            folder.append(result)
+            bar.set_postfix_str(
+                f"{result['world']} {result['shift']} {result['condition']} "
+                f"b={result['budget']} s={result['seed']}: {result['success']}",
+                refresh=False,
+            )
+            bar.update(1)
+
+        try:
+            executed = run_specs(
+                todo,
+                settings,
+                backend=backend,
+                workers=workers,
+                on_result=on_result,
+                ray_address=ray_address,
+            )
+        finally:
+            bar.close()
+    rows = folder.finalise()
+    reports: tuple[Path, ...] = ()
+    if rows:
+        reports = (
+            write_table(folder.out, rows, settings),
+            *write_plots(folder.out, rows),
+            write_rrd(folder.out, rows),
+        )
+    return Summary(
+        folder.out,
+        len(specs),
+        len(specs) - len(todo),
+        executed,
+        time.perf_counter() - t0,
+        reports,
+    )
+
+
+def _progress(total: int, initial: int, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(
+        total=total, initial=initial, desc="runs", unit="run", disable=not enabled, smoothing=0.1
+    )

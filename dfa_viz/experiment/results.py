@@ -1,0 +1,252 @@
+"""The results folder: every run's row, resumable, and the table of means beside the paper's.
+
+    <out>/config.json   the settings every run shares (a folder keeps to one set)
+    <out>/runs.csv      one row per finished run (runner.COLUMNS); appended one whole line at
+                        a time while the experiment runs, rewritten sorted by run key (to a
+                        temporary file, then renamed) when it ends
+    <out>/timings.csv   per run: its key, wall time and the worker that ran it (not part of the
+                        results: it differs between executions)
+    <out>/table.md      means and 95% confidence intervals beside the paper's numbers
+    <out>/plots/*.png, <out>/curves.rrd   (figures.py)
+
+An interrupted experiment resumes from the folder: runs whose key is in runs.csv are skipped;
+a line cut short by the interruption is dropped.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dfa_viz.experiment.conditions import CONDITION_NAMES, CONDITIONS, paper_value
+from dfa_viz.experiment.runner import COLUMNS, KEY, Settings
+from sim.core import UserError
+
+TIMING_COLUMNS = (*KEY, "duration_s", "cpu_s", "host")
+Key = tuple[str, str, str, int, int]
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+# two-sided 95% Student t quantiles by degrees of freedom (1..30); 1.96 beyond
+_T95 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228,
+    2.201, 2.179, 2.160, 2.145, 2.131, 2.120, 2.110, 2.101, 2.093, 2.086,
+    2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)  # fmt: skip
+
+
+def key_of(row: dict[str, str]) -> Key:
+    return (row["world"], row["shift"], row["condition"], int(row["budget"]), int(row["seed"]))
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give it a normal file's mode
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _csv_line(columns: Sequence[str], row: Mapping[str, object]) -> str:
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([row[c] for c in columns])
+    return buf.getvalue()
+
+
+class ResultsFolder:
+    """Reads and writes one experiment's folder."""
+
+    def __init__(self, out: str | Path, settings: Settings) -> None:
+        self.out = Path(out)
+        self.settings = settings
+        self.runs_csv = self.out / "runs.csv"
+        self.timings_csv = self.out / "timings.csv"
+        self.out.mkdir(parents=True, exist_ok=True)
+        self._check_config()
+        for path, columns in ((self.runs_csv, COLUMNS), (self.timings_csv, TIMING_COLUMNS)):
+            self._repair(path, columns)
+
+    def _check_config(self) -> None:
+        path = self.out / "config.json"
+        mine = {"settings": self.settings.to_dict(), "columns": list(COLUMNS)}
+        if path.is_file():
+            theirs = json.loads(path.read_text())
+            if theirs != mine:
+                raise UserError(
+                    f"{self.out} holds results made with {theirs['settings']}; these runs use "
+                    f"{mine['settings']}: choose another --out or the same settings"
+                )
+        else:
+            _atomic_write_text(path, json.dumps(mine, indent=2) + "\n")
+
+    @staticmethod
+    def _repair(path: Path, columns: Sequence[str]) -> None:
+        """Create the file with its header, or drop a last line an interruption cut short."""
+        if not path.is_file() or path.stat().st_size == 0:
+            _atomic_write_text(path, _csv_line(columns, dict(zip(columns, columns, strict=True))))
+            return
+        text = path.read_text()
+        header = text.split("\n", 1)[0].split(",")
+        if header != list(columns):
+            raise UserError(f"{path}: columns {header}, expected {list(columns)}")
+        if not text.endswith("\n"):
+            _atomic_write_text(path, text[: text.rfind("\n") + 1])
+
+    def rows(self) -> list[dict[str, str]]:
+        """Every complete row of runs.csv (the last row wins if a key appears twice)."""
+        with self.runs_csv.open(newline="") as f:
+            rows = [r for r in csv.DictReader(f) if None not in r.values() and None not in r]
+        return list({key_of(r): r for r in rows}.values())
+
+    def done(self) -> set[Key]:
+        return {key_of(r) for r in self.rows()}
+
+    def append(self, result: dict[str, object]) -> None:
+        """Append one run's row (and its timing) as whole lines, flushed to disk."""
+        for path, columns in ((self.runs_csv, COLUMNS), (self.timings_csv, TIMING_COLUMNS)):
+            line = _csv_line(columns, result).encode()
+            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+            try:
+                os.write(fd, line)
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+
+    def finalise(self) -> list[dict[str, str]]:
+        """Rewrite runs.csv sorted by run key (atomically); returns the rows."""
+        rows = sorted(self.rows(), key=key_of)
+        header = _csv_line(COLUMNS, dict(zip(COLUMNS, COLUMNS, strict=True)))
+        _atomic_write_text(self.runs_csv, header + "".join(_csv_line(COLUMNS, r) for r in rows))
+        return rows
+
+
+# -- statistics -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Cell:
+    """Success over seeds for one (world, shift, condition, budget)."""
+
+    n: int
+    mean: float
+    half_width: float
+    """Half-width of the 95% confidence interval of the mean (Student t); nan for n = 1."""
+
+    @property
+    def low(self) -> float:
+        return max(0.0, self.mean - self.half_width) if self.n > 1 else self.mean
+
+    @property
+    def high(self) -> float:
+        return min(1.0, self.mean + self.half_width) if self.n > 1 else self.mean
+
+
+def summarise(values: Sequence[float]) -> Cell:
+    n = len(values)
+    mean = sum(values) / n
+    if n == 1:
+        return Cell(1, mean, math.nan)
+    sd = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1))
+    t = _T95[n - 2] if n - 1 <= len(_T95) else 1.96
+    return Cell(n, mean, t * sd / math.sqrt(n))
+
+
+def cells(rows: Iterable[dict[str, str]]) -> dict[tuple[str, str, str, int], Cell]:
+    """(world, shift, condition, budget) -> success over seeds."""
+    groups: dict[tuple[str, str, str, int], list[float]] = defaultdict(list)
+    for r in rows:
+        groups[(r["world"], r["shift"], r["condition"], int(r["budget"]))].append(
+            float(r["success"])
+        )
+    return {k: summarise(v) for k, v in sorted(groups.items())}
+
+
+def panels(table: dict[tuple[str, str, str, int], Cell]) -> list[tuple[str, str]]:
+    """The (world, shift) pairs present, in the paper's order (object shifts first)."""
+    order = {"nav2d": 0, "doorkey": 1, "tabletop": 2}
+    pairs = {(w, s) for w, s, _, _ in table}
+    return sorted(pairs, key=lambda p: (p[1] != "object", order.get(p[0], 9), p[0]))
+
+
+def ordering(table, world: str, shift: str, budgets: Sequence[int]) -> str:
+    """How our means compare with the paper's ordering: Oracle >= CF H > Baseline H at every
+    budget, and CF H > NH-random at the two smallest budgets (ties counted apart)."""
+
+    def means(*conditions: str, among: Sequence[int]) -> list[tuple[float, ...]]:
+        out = []
+        for b in among:
+            got = [table.get((world, shift, c, b)) for c in conditions]
+            if all(g is not None for g in got):
+                out.append(tuple(round(g.mean, 9) for g in got))
+        return out
+
+    def count(pairs: list[tuple[float, ...]], strict: bool) -> str:
+        ok = sum(a > b if strict else a >= b for a, b in pairs)
+        ties = sum(a == b for a, b in pairs) if strict else 0
+        return f"{ok}/{len(pairs)}" + (f" (tied at {ties})" if ties else "")
+
+    small = sorted(budgets)[:2]
+    return (
+        f"Oracle >= CF H at {count(means('oracle', 'cf_h', among=budgets), False)} budgets; "
+        f"CF H > Baseline H at {count(means('cf_h', 'baseline_h', among=budgets), True)}; "
+        f"CF H > NH-random at {count(means('cf_h', 'nh_random', among=small), True)} "
+        "of the two smallest"
+    )
+
+
+def _fmt(cell: Cell | None, paper: float | None) -> str:
+    ours = "—" if cell is None else f"{cell.mean:.2f}"
+    if cell is not None and cell.n > 1:
+        ours += f" ± {cell.half_width:.2f}"
+    return ours + ("" if paper is None else f" ({paper:g})")
+
+
+def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
+    """One table per world and shift: our mean ± 95% CI half-width, the paper's in brackets."""
+    table = cells(rows)
+    seeds = sorted({int(r["seed"]) for r in rows})
+    lines = [
+        "# Finetuning success versus finetuning trajectories",
+        "",
+        f"Mean success on {settings.n_eval} fresh tasks from R' over {len(seeds)} seed(s) "
+        f"± the half-width of its 95% confidence interval (Student t over seeds); the paper's "
+        f"number in brackets. {len(rows)} runs; finetuning {settings.steps} steps; "
+        f"counterfactual search up to {settings.max_size} changes.",
+    ]
+    for world, shift in panels(table):
+        budgets = sorted({b for w, s, _, b in table if (w, s) == (world, shift)})
+        lines += [
+            "",
+            f"## {world}, {shift} shift",
+            "",
+            "| condition | " + " | ".join(str(b) for b in budgets) + " |",
+            "|---|" + "---|" * len(budgets),
+        ]
+        for c in CONDITIONS:
+            if not any((world, shift, c, b) in table for b in budgets):
+                continue
+            cols = [
+                _fmt(table.get((world, shift, c, b)), paper_value(world, shift, c, b))
+                for b in budgets
+            ]
+            lines.append(f"| {CONDITION_NAMES[c]} | " + " | ".join(cols) + " |")
+        lines += ["", f"Ordering: {ordering(table, world, shift, budgets)}."]
+    return "\n".join(lines) + "\n"
+
+
+def write_table(out: Path, rows: Sequence[dict[str, str]], settings: Settings) -> Path:
+    path = Path(out) / "table.md"
+    _atomic_write_text(path, markdown_table(rows, settings))
+    return path
