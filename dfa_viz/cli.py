@@ -141,12 +141,30 @@ def serve(
     serve_app(world=world, port=port, host=host, session=session)
 
 
+def experiment() -> None:
+    """Reproduce the paper's experiments: `dfa experiment q2 --help`."""
+    print("dfa experiment q2 [--worlds ...] [--shift object|distractor|both] [--budgets ...] ...")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `dfa` console script; user errors print one line and exit 2."""
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
+        if args[:1] == ["experiment"] and len(args) > 1:
+            from dfa_viz.experiment.cli import experiment_main
+
+            experiment_main(args[1:])
+            return 0
         tyro.extras.subcommand_cli_from_dict(
-            {"run": run, "train": train, "bench": bench, "demo": demo, "serve": serve},
-            args=argv,
+            {
+                "run": run,
+                "train": train,
+                "bench": bench,
+                "demo": demo,
+                "serve": serve,
+                "experiment": experiment,
+            },
+            args=args,
             prog="dfa",
         )
     except UserError as e:
