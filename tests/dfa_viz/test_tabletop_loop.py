@@ -4,6 +4,7 @@ finetuning that helps, and `dfa run` writing a recording with the scene in 3D.""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from dfa_viz.cli import main
 from dfa_viz.loop import run_loop
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
+from policy.train import FINETUNE
 from search import SearchConfig, counterfactual_search
 from sim import get_world
 from sim.core import ABSENT, PRESENCE, PRESENT, SHIFTS
@@ -99,6 +101,8 @@ def test_other_shift_has_no_counterfactual(world, policy):
 
 
 def test_feedback_and_finetuning_raise_success_for_distractor_ti(world, policy):
+    # a third of the default finetuning steps keeps the test short; object_ti below runs
+    # the defaults through `dfa run`
     task, _ = failing_test_task(world, policy, "distractor_ti", 0)
     report = run_loop(
         world,
@@ -106,6 +110,7 @@ def test_feedback_and_finetuning_raise_success_for_distractor_ti(world, policy):
         task,
         SimulatedUser(world, seed=0),
         search_config=SearchConfig.for_world(world),
+        train_config=replace(FINETUNE, steps=FINETUNE.steps // 3),
         seed=0,
     )
     assert report.failed and report.search.found
