@@ -121,9 +121,17 @@ SEARCH_TARGETS = {
 
 
 def run_bench(
-    worlds: tuple[str, ...], *, repeats: int = 3, out: Path = Path("benchmarks") / "latest.md"
+    worlds: tuple[str, ...],
+    *,
+    repeats: int = 3,
+    page: bool = False,
+    out: Path = Path("benchmarks") / "latest.md",
 ) -> list[tuple[str, str, str, str]]:
-    """Measure, print a table, and write it as Markdown to `out`. Rows: (what, value, target, ok)."""
+    """Measure, print a table, and write it as Markdown to `out`.
+
+    Rows are (what, value, target, met). The page figures need Chromium and take a minute or
+    two; they are measured when `page` is set.
+    """
     rows: list[tuple[str, str, str, str]] = []
 
     def add(what: str, value: str, target: str = "", ok: bool | None = None) -> None:
@@ -131,9 +139,9 @@ def run_bench(
 
     for name in worlds:
         if name == "tabletop":
-            from dfa_viz.bench_tabletop import bench_tabletop
+            from dfa_viz.bench_tabletop import bench_rows, bench_tabletop
 
-            for what, value, target, ok in bench_tabletop():
+            for what, value, target, ok in bench_rows(bench_tabletop(repeats=repeats)):
                 add(f"tabletop: {what}", value, target, ok)
             continue
         sizes, shift, max_s, min_ratio = SEARCH_TARGETS[name]
@@ -159,6 +167,11 @@ def run_bench(
             "< 30 s",
             run_s < 30,
         )
+    if page:
+        from dfa_viz.bench_page import bench_page
+
+        for key, value in bench_page().items():
+            add(f"page: {key}", f"{value:.3g}" if isinstance(value, float) else str(value))
     console = Console()
     table = Table(title=f"dfa bench — {machine()}")
     for col in ("figure", "value", "target", "met"):

@@ -8,10 +8,10 @@ search >= 50x the naive loop per candidate.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import numpy as np
 
+from dfa_viz.bench import _best_of
 from policy import Policy, base_policy, failing_test_task
 from search import SearchConfig, counterfactual_search, rollout_lockstep, singles
 from sim import get_world
@@ -19,16 +19,6 @@ from sim.core import Edit, Scene, Task, Trajectory
 
 TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0, "ratio": 50.0}
 NAIVE_SAMPLE = 5  # naive candidates timed; the per-candidate time is extrapolated from them
-
-
-def _best_of(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
-    """Best wall time of `repeats` calls (the machine is shared) and the last result."""
-    best, out = float("inf"), None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def double_shift_task(world, seed: int = 0) -> Task:

@@ -83,16 +83,27 @@ def train(worlds: tuple[str, ...] = ("nav2d",), seed: int = 0, retrain: bool = F
         print(f"{name}: base policy at {path}; training-distribution success {rate:.0%}")
 
 
-def bench(worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop"), repeats: int = 3) -> None:
-    """Measure the search against a naive loop, and a full `dfa run`, on this machine.
+def bench(
+    worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop"),
+    repeats: int = 3,
+    page: bool = True,
+    out: Path = Path("benchmarks") / "latest.md",
+) -> None:
+    """Measure every speed figure on this machine and write them to benchmarks/ as Markdown.
+
+    Each world's search against a naive one-candidate-at-a-time loop timed in the same process,
+    a whole `dfa run`, the tabletop's edit + render and search targets, and the web page (load,
+    slider latency, finetune round trip).
 
     Args:
         worlds: which worlds to measure.
         repeats: timing repeats (the best is reported).
+        page: also measure the web page in Chromium (a minute or two).
+        out: the Markdown report.
     """
     from dfa_viz.bench import run_bench
 
-    run_bench(worlds, repeats=repeats)
+    run_bench(worlds, repeats=repeats, page=page, out=out)
 
 
 def demo(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 
@@ -37,7 +38,9 @@ def _variants(world: World, task: Task, demo: Trajectory, feedback: Feedback):
     return per_label
 
 
-def _transform(scene: Scene, ops) -> Scene:
+def transform(scene: Scene, ops) -> Scene:
+    """The scene with each op made: ("set", slot, concept, value), ("remove", slot) or
+    ("add", slot, values, pos). The same ops are applied to every state of a demonstration."""
     for op in ops:
         o = scene.obj(op[1])
         if op[0] == "set":
@@ -48,6 +51,43 @@ def _transform(scene: Scene, ops) -> Scene:
             o = Obj(o.slot, True, op[2], op[3])
         scene = scene.with_obj(o)
     return scene
+
+
+ENUMERATE_BELOW = 50_000  # above this many combinations, draw them instead of listing all
+
+
+def _useful(scene: Scene, ops) -> bool:
+    """The ops change the scene and do not stack two added objects on one place."""
+    added = [op[3] for op in ops if op[0] == "add"]
+    return len(added) == len(set(added)) and transform(scene, ops) != scene
+
+
+def _combinations(scene: Scene, per_label: list, max_augmented: int, seed: int) -> list:
+    """At most `max_augmented` useful combinations (one option per label), drawn evenly."""
+    sizes = [len(options) for options in per_label]
+    total = math.prod(sizes)
+    rng = np.random.default_rng(seed)
+    if total <= ENUMERATE_BELOW:
+        combos = [c for c in itertools.product(*per_label) if _useful(scene, c)]
+        if len(combos) > max_augmented:
+            pick = rng.choice(len(combos), max_augmented, replace=False)
+            combos = [combos[i] for i in sorted(pick)]
+        return combos
+    chosen: dict[int, tuple] = {}
+    seen: set[int] = set()
+    for _ in range(50 * max_augmented):  # large products: draw flat indices, decode each
+        i = int(rng.integers(total))
+        if i in seen:
+            continue
+        seen.add(i)
+        combo = tuple(
+            opts[j] for opts, j in zip(per_label, np.unravel_index(i, sizes), strict=True)
+        )
+        if _useful(scene, combo):
+            chosen[i] = combo
+            if len(chosen) == max_augmented:
+                break
+    return [chosen[i] for i in sorted(chosen)]
 
 
 def augment(
@@ -63,19 +103,17 @@ def augment(
 
     Each augmented trajectory keeps the demonstrated actions; its states are the demonstrated
     states with the concept edited (or the distractor added at a placement off the path, or
-    removed). Combinations identical to the demonstration are skipped. When there are more
-    than `max_augmented`, that many are drawn without replacement (seeded).
+    removed). Combinations identical to the demonstration, or stacking two added objects on
+    one place, are skipped. When there are more than `max_augmented`, that many are drawn
+    without replacement (seeded); very large products are sampled without being listed.
     """
     per_label = _variants(world, task, demo, feedback)
     if not per_label:
         return []
-    combos = [c for c in itertools.product(*per_label) if _transform(task.scene, c) != task.scene]
-    if len(combos) > max_augmented:
-        pick = np.random.default_rng(seed).choice(len(combos), max_augmented, replace=False)
-        combos = [combos[i] for i in sorted(pick)]
+    combos = _combinations(task.scene, per_label, max_augmented, seed)
     out = []
     for ops in combos:
-        scenes = tuple(_transform(s, ops) for s in demo.scenes)
+        scenes = tuple(transform(s, ops) for s in demo.scenes)
         obs = world.render_batch(scenes)  # (T+1, H, W, 3)
         out.append(Trajectory(scenes, obs, demo.actions, demo.success))
     return out

@@ -22,7 +22,8 @@ from collections.abc import Iterator, Sequence
 import numpy as np
 
 from dfa_viz.experiment.conditions import UserConcept, stable_int
-from sim.core import ABSENT, PRESENCE, PRESENT, Obj, Scene, Task, Trajectory, World
+from policy.augment import transform
+from sim.core import ABSENT, PRESENCE, PRESENT, Scene, Task, Trajectory, World
 
 # Below this many combinations a concept's options are walked in one seeded permutation;
 # above it, combinations are drawn at random (with a seen-set) until enough are found.
@@ -74,20 +75,6 @@ def member_options(
             ]
         per_member.append(ops)
     return per_member
-
-
-def transform(scene: Scene, ops: Sequence[Op]) -> Scene:
-    """The scene with each op made (the same edit is made to every state of a trajectory)."""
-    for op in ops:
-        o = scene.obj(op[1])
-        if op[0] == "set":
-            o = o.with_value(op[2], op[3])
-        elif op[0] == "remove":
-            o = Obj(o.slot, False, o.values, o.pos)
-        else:  # add
-            o = Obj(o.slot, True, op[2], op[3])
-        scene = scene.with_obj(o)
-    return scene
 
 
 def _stacked(scene: Scene, ops: Sequence[Op]) -> bool:
