@@ -15,6 +15,8 @@ from sim.core import Edit, Feedback, Task, Trajectory, World
 APP_ID = "dfa"
 ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
 JPEG_QUALITY = 90
+DETAIL_LIMIT = 300  # searches up to this size get one entity per candidate
+DETAIL_BEST = 50  # larger ones: every candidate as a row, traces for the valid and best few
 
 
 def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
@@ -86,6 +88,7 @@ class Recorder:
             ),
         )
         self._demo: Trajectory | None = None
+        self._candidates: list[Candidate] = []
 
     # -- helpers ------------------------------------------------------------------------------
     def _image(self, frame: np.ndarray):
@@ -137,6 +140,36 @@ class Recorder:
             )
 
     def on_candidate(self, index: int, cand: Candidate) -> None:
+        """Collected; written when the search ends (the size of the search decides how)."""
+        self._candidates.append(cand)
+
+    def _log_candidates(self) -> None:
+        cands, self._candidates = self._candidates, []
+        if len(cands) <= DETAIL_LIMIT:
+            for i, cand in enumerate(cands):
+                self._log_candidate(i, cand)
+            return
+        # A large search: one row per candidate on the `candidate` timeline ...
+        index = np.arange(len(cands))
+        self.rec.send_columns(
+            "search/all",
+            indexes=[rr.TimeColumn("candidate", sequence=index)],
+            columns=[
+                *rr.Scalars.columns(scalars=np.array([c.total for c in cands])),
+                *rr.AnyValues.columns(
+                    edit=[str(c.edit) for c in cands],
+                    size=[c.edit.size for c in cands],
+                    valid=[c.valid for c in cands],
+                    dropped_at=[-1 if c.dropped_at is None else c.dropped_at for c in cands],
+                ),
+            ],
+        )
+        # ... and the distance traces of the valid ones and the closest others.
+        best = sorted(index, key=lambda i: (not cands[i].valid, cands[i].total))[:DETAIL_BEST]
+        for i in sorted(set(best) | {i for i in index if cands[i].valid}):
+            self._log_candidate(int(i), cands[i])
+
+    def _log_candidate(self, index: int, cand: Candidate) -> None:
         entity = f"search/candidates/c{index:05d}"
         self.rec.log(
             entity,
@@ -154,6 +187,8 @@ class Recorder:
         self._series(entity, np.arange(len(cand.distances)), cand.distances.astype(np.float64))
 
     def on_search(self, result: SearchResult, counterfactual: Trajectory | None) -> None:
+        self.rec.reset_time()
+        self._log_candidates()
         self.rec.log("search/summary", rr.TextDocument(result.summary()), static=True)
         if result.best is None:
             text = (
@@ -209,5 +244,8 @@ class Recorder:
         self.rec.log("evaluation/values", rr.AnyValues(before=before, after=after), static=True)
 
     def close(self) -> None:
+        if self._candidates:  # a search cut short still leaves what it tried
+            self.rec.reset_time()
+            self._log_candidates()
         self.rec.flush()
         self.rec.disconnect()

@@ -32,11 +32,17 @@ class SearchConfig:
     """Order edits of size >= 2 by the first-step distances their single changes got."""
     joint_below: int = 512
     """When all sizes together have at most this many edits, roll them out in one pass."""
+    max_candidates: int | None = None
+    """Stop after this many candidates (the most promising first); None = no limit."""
 
     @classmethod
     def for_world(cls, world: World, *, max_size: int = 2) -> SearchConfig:
         """Defaults a world asks for (e.g. `search_first_only` on large concept spaces)."""
-        return cls(max_size=max_size, first_only=getattr(world, "search_first_only", False))
+        return cls(
+            max_size=max_size,
+            first_only=getattr(world, "search_first_only", False),
+            max_candidates=getattr(world, "search_max_candidates", None),
+        )
 
 
 @dataclass(frozen=True)
@@ -54,6 +60,8 @@ class SearchResult:
     tried: tuple[Candidate, ...]
     size: int | None
     max_size: int
+    complete: bool = True
+    """False when the search stopped at its candidate limit before trying every edit."""
 
     @property
     def found(self) -> bool:
@@ -64,6 +72,12 @@ class SearchResult:
         return self.counterfactuals[0] if self.counterfactuals else None
 
     def summary(self) -> str:
+        if not self.found and not self.complete:
+            return (
+                f"no counterfactual among the {len(self.tried)} most promising edits of up to "
+                f"{self.max_size} concept changes (the search stops there): the cause is most "
+                "likely outside the concept space"
+            )
         if not self.found:
             return (
                 f"no counterfactual: no edit of up to {self.max_size} concept changes makes the "
@@ -103,7 +117,10 @@ def counterfactual_search(
         if on_progress is not None:
             on_progress(size, 0, total)
         while True:
-            wave = list(itertools.islice(edits, config.wave))
+            room = config.wave
+            if config.max_candidates is not None:
+                room = min(room, config.max_candidates - len(tried))
+            wave = list(itertools.islice(edits, max(room, 0)))
             if not wave:
                 break
             results = rollout_lockstep(world, policy, scene, demo, wave, epsilon=eps)
@@ -122,7 +139,8 @@ def counterfactual_search(
                 break
         if valid:
             return SearchResult(_rank(valid), tuple(tried), size, config.max_size)
-    return SearchResult((), tuple(tried), None, config.max_size)
+    complete = len(tried) == sum(totals.values())
+    return SearchResult((), tuple(tried), None, config.max_size, complete)
 
 
 def _rank(valid: list[Candidate]) -> tuple[Candidate, ...]:

@@ -43,6 +43,7 @@ class TabletopWorld(World):
     has_3d = True  # the recorder adds dfa_viz.scene3d's meshes and poses
     # about 440 single edits and 95,000 pairs: a size-2 search stops at its first valid edit
     search_first_only = True
+    search_max_candidates = 20_000  # ~30 s: "no counterfactual" among the most promising
 
     def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]

@@ -49,3 +49,26 @@ def test_same_seed_same_report(nav, nav_policy):
     a = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
     b = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
     assert a.to_dict() == b.to_dict() and a.losses == b.losses
+
+
+def test_large_searches_are_recorded_as_rows(nav, nav_policy, tmp_path, monkeypatch):
+    import rerun as rr
+
+    from dfa_viz import recording
+    from dfa_viz.recording import Recorder
+
+    monkeypatch.setattr(recording, "DETAIL_LIMIT", 5)
+    monkeypatch.setattr(recording, "DETAIL_BEST", 2)
+    task, _ = failing_test_task(nav, nav_policy, "other", 0)
+    rec = Recorder(tmp_path / "run.rrd", nav, task)
+    report = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0, observer=rec)
+    rec.close()
+    rows, traces = 0, set()
+    for chunk in rr.chunk.RrdReader(tmp_path / "run.rrd").store().stream():
+        path = str(chunk.entity_path)
+        if path == "/search/all":
+            rows += chunk.num_rows
+        elif path.startswith("/search/candidates/c"):
+            traces.add(path)
+    assert rows == len(report.search.tried) > 5
+    assert len(traces) == 2  # no valid candidate here: only the two closest keep a trace

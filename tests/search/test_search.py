@@ -104,3 +104,14 @@ def test_search_is_deterministic(nav, nav_policy):
     a = counterfactual_search(nav, nav_policy, task.scene, demo)
     b = counterfactual_search(nav, nav_policy, task.scene, demo)
     assert [c.to_dict() for c in a.tried] == [c.to_dict() for c in b.tried]
+
+
+def test_candidate_limit_stops_the_search_and_says_so(nav, nav_policy):
+    task, _ = failing_test_task(nav, nav_policy, "other", 0)
+    demo = nav.demonstrate(task)
+    config = SearchConfig(max_candidates=10, joint_below=0)
+    result = counterfactual_search(nav, nav_policy, task.scene, demo, config=config)
+    assert len(result.tried) == 10 and not result.complete and not result.found
+    assert "most promising" in result.summary()
+    full = counterfactual_search(nav, nav_policy, task.scene, demo)
+    assert full.complete and "outside the concept space" in full.summary()
