@@ -31,7 +31,7 @@ class DoorKeyEnv(MiniGridEnv):
     """
 
     # rgb_array only: the frame is the observation (and no window is opened by check_env)
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}  # noqa: RUF012 (as gym.Env)
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, render_mode: str | None = "rgb_array") -> None:
         super().__init__(

@@ -90,7 +90,7 @@ class DoorKeyGrid(Grid):
 
     # (encode, agent_dir, tile_size) -> uint8 (tile, tile, 3); bounded: the objects of this
     # world are finite (24 encodings x 5 agent overlays per tile size).
-    tile_cache: dict[tuple[Any, ...], Any] = {}  # noqa: RUF012 (as minigrid's Grid declares it)
+    tile_cache: dict[tuple[Any, ...], Any] = {}
 
     @classmethod
     def render_tile(

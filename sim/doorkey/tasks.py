@@ -1,5 +1,7 @@
-"""DoorKey tasks: the training layout, the five shifts, fresh tasks from R', lava placements.
+"""DoorKey tasks: the training layouts, the five shifts, fresh tasks from R', lava placements.
 
+Shifted tasks start from a training layout: undoing an object or distractor shift gives back a
+training scene, and `other` moves the key or the door to a row no training layout has for it.
 Every generated layout is solvable by the expert within the horizon: a layout it cannot solve
 is rejected and drawn again from the same generator.
 """
@@ -26,7 +28,15 @@ from sim.doorkey.layout import (
     rows_of,
 )
 
-TRAIN_ROWS = {"key": 5, "door": 3, "goal": 8}  # expert: 25 steps
+# The training layouts: (key, door, goal) rows, one per demonstration seed (expert: 19-27 steps).
+# The goal's row takes all ten rows, so the cloned policy cannot replay one action sequence: it
+# has to find the goal and read the scene from the image. The key and the door keep one row each
+# (a spread of all three rows needs about 5x the default cloning budget to fit), so every other
+# row of theirs is a place the training distribution never had: the `other` shift moves one
+# there. Layout 0 is the canonical one.
+TRAIN_LAYOUTS: tuple[tuple[int, int, int], ...] = tuple(
+    (5, 3, goal) for goal in (8, 2, 4, 6, 3, 7, 5, 1, 9, 10)
+)
 TRAIN_COLOURS = {"key": "yellow", "door": "yellow", "goal": "green"}
 # where absent lava slots wait to be added by an edit: the first of these that is free and off
 # the expert's path (then any such cell, row by row)
@@ -48,6 +58,12 @@ def neighbours(cell: Cell) -> set[Cell]:
     """The cell and its four neighbours: what keeping clear of a lava tile forbids."""
     c, r = cell
     return {(c, r), (c + 1, r), (c - 1, r), (c, r + 1), (c, r - 1)}
+
+
+def unseen_rows(slot: str) -> tuple[int, ...]:
+    """Rows on which no training layout has `slot` (where the `other` shift moves it)."""
+    i = OBJ_SLOTS.index(slot)
+    return tuple(r for r in ROWS if all(layout[i] != r for layout in TRAIN_LAYOUTS))
 
 
 # -- rewards --------------------------------------------------------------------------------------
@@ -83,20 +99,24 @@ def build(
 ) -> Scene | None:
     """A solvable initial scene, or None when the expert cannot solve the layout in time.
 
-    Present lava tiles go on random free cells off the expert's path (for slots in `keep_clear`
-    also off the cells next to it); absent ones get their latent cell (LATENT_LAVA).
+    Present lava tiles lie close to the expert's path without changing it, where a distractor
+    is in view of what the agent does: on a free cell next to the path, or, for slots in
+    `keep_clear` (the agent must not step next to them), one cell further out. Absent ones get
+    their latent cell (LATENT_LAVA).
     """
     base = make_scene(rows, colours, tuple((False, c, (0, 0)) for _, c in lavas))
     st = parse(base)
     if not solvable(st):
         return None
     path = set(path_cells(st))
-    near = set().union(*(neighbours(c) for c in path))
+    near = set().union(*(neighbours(c) for c in path))  # the path and the cells next to it
     free = [c for c in interior() if c not in path and c not in _object_cells(rows)]
     cells: list[Cell | None] = [None] * len(LAVA_SLOTS)
     for i, (slot, (present, _)) in enumerate(zip(LAVA_SLOTS, lavas, strict=True)):
         if present:
-            ok = [c for c in free if c not in cells and (slot not in keep_clear or c not in near)]
+            clear = near if slot in keep_clear else path
+            ring = set().union(*(neighbours(c) for c in clear)) - clear
+            ok = [c for c in free if c in ring and c not in cells]
             if not ok:
                 return None
             cells[i] = ok[rng.integers(len(ok))]
@@ -122,20 +142,29 @@ def _colours(scene: Scene) -> dict[str, str]:
 
 
 # -- tasks ----------------------------------------------------------------------------------------
+def train_rows(seed: int = 0) -> dict[str, int]:
+    """The key, door and goal rows of training layout `seed` (TRAIN_LAYOUTS, cycling)."""
+    return dict(zip(OBJ_SLOTS, TRAIN_LAYOUTS[seed % len(TRAIN_LAYOUTS)], strict=True))
+
+
 def train_task(seed: int = 0) -> Task:
-    """The training layout: key row 5, door row 3, goal row 8; yellow key and door, green goal;
-    no lava. The same for every seed."""
-    scene = build(TRAIN_ROWS, TRAIN_COLOURS, NO_LAVA, np.random.default_rng(0))
+    """A training task: yellow key and door, green goal, no lava, on the rows of
+    TRAIN_LAYOUTS[seed % 10]. Seed 0 is the canonical layout (key 5, door 3, goal 8)."""
+    scene = build(train_rows(seed), TRAIN_COLOURS, NO_LAVA, np.random.default_rng(0))
     assert scene is not None
     return Task(WORLD, scene, object_reward(TRAIN_COLOURS), "train", seed)
 
 
 def shifted_task(shift: str, seed: int) -> Task:
-    """A shifted task of kind `shift`, drawn from np.random.default_rng([seed, 2])."""
+    """A shifted task of kind `shift`, drawn from np.random.default_rng([seed, 2]).
+
+    Every kind starts from one of the training layouts (drawn from the seed); the object and
+    distractor shifts keep its rows, so undoing the shift gives back a training scene.
+    """
     check_shift(shift)
     rng = np.random.default_rng([seed, 2])
-    train = train_task()
-    rows, colours = dict(TRAIN_ROWS), dict(TRAIN_COLOURS)
+    train = train_task(int(rng.integers(len(TRAIN_LAYOUTS))))
+    rows, colours = rows_of(train.scene), dict(TRAIN_COLOURS)
     if shift.startswith("object"):
         slot = str(rng.choice(OBJ_SLOTS))
         colours[slot] = str(rng.choice([c for c in OBJ_COLOURS if c != colours[slot]]))
@@ -165,12 +194,12 @@ def shifted_task(shift: str, seed: int) -> Task:
         return Task(
             WORLD, scene, avoid_reward(train.reward, slot, colour), shift, seed, (slot, PRESENCE)
         )
-    # other: one object moves to another row; no concept edit explains it
-    slot = str(rng.choice(OBJ_SLOTS))
+    # other: one object moves to a row no training layout has for it; no concept edit explains it
+    slot = str(rng.choice([s for s in OBJ_SLOTS if unseen_rows(s)]))
 
     def moved() -> Scene | None:
         new = dict(rows)
-        new[slot] = int(rng.choice([r for r in ROWS if r != rows[slot]]))
+        new[slot] = int(rng.choice(unseen_rows(slot)))
         return build(new, colours, NO_LAVA, rng)
 
     scene = _draw(moved, shift)
@@ -191,8 +220,8 @@ def avoid_reward(train: Reward, slot: str, colour: str) -> Reward:
 
 def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
     """n tasks from the R' of `task`: each allowed (slot, concept) drawn from its allowed values;
-    present lava placed off the expert's path (kept clear of it for avoided slots); for
-    `other`, key, door and goal on random rows. Drawn from np.random.default_rng([seed, 3])."""
+    the task's rows kept (for `other`, key, door and goal on random rows); present lava placed
+    as `build` does. Drawn from np.random.default_rng([seed, 3])."""
     rng = np.random.default_rng([seed, 3])
     rows0, colours0 = rows_of(task.scene), _colours(task.scene)
 
