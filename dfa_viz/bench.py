@@ -113,11 +113,9 @@ def machine() -> str:
     )
 
 
-# world -> (sizes searched, shift, targets): the issues' targets on 2 cores
-SEARCH_TARGETS = {
-    "nav2d": ((1, 2), "distractor_ti", 0.5, 10.0),
-    "doorkey": ((1,), "object_ti", 0.5, 10.0),
-}
+# world -> the sizes whose whole search has a time target (the issues' targets, 2 cores)
+TIME_TARGETS = {"nav2d": ((1, 2), 0.5), "doorkey": ((1,), 0.5)}
+MIN_RATIO = 10.0
 
 
 def run_bench(
@@ -144,22 +142,26 @@ def run_bench(
             for what, value, target, ok in bench_rows(bench_tabletop(repeats=repeats)):
                 add(f"tabletop: {what}", value, target, ok)
             continue
-        sizes, shift, max_s, min_ratio = SEARCH_TARGETS[name]
-        r = bench_world(name, repeats=repeats, shift=shift, sizes=sizes)
+        sizes, max_s = TIME_TARGETS[name]
         label = " + ".join(f"size {k}" for k in sizes)
+        # `other` has no counterfactual: the search really runs every size to the end
+        r = bench_world(name, repeats=repeats, shift="other", sizes=sizes)
         add(
-            f"{name}: whole {label} search ({r['candidates']} candidates, {shift})",
+            f"{name}: whole {label} search, no counterfactual ({r['candidates']} edits)",
             f"{r['batched_s'] * 1000:.1f} ms",
             f"< {max_s * 1000:.0f} ms",
             r["batched_s"] < max_s,
         )
-        add(f"{name}: candidate rollouts per second", f"{r['per_s']:.0f}")
-        add(
-            f"{name}: batched vs naive one-at-a-time loop ({r['naive_s'] * 1000:.0f} ms)",
-            f"{r['ratio']:.1f}x",
-            f">= {min_ratio:.0f}x",
-            r["ratio"] >= min_ratio,
-        )
+        for shift in ("other", "distractor_ti"):
+            r = bench_world(name, repeats=repeats, shift=shift, sizes=(1, 2))
+            add(
+                f"{name}: size 1 + 2 search on {shift}, batched vs naive one-at-a-time loop "
+                f"({r['candidates']} edits: {r['batched_s'] * 1000:.1f} vs "
+                f"{r['naive_s'] * 1000:.1f} ms; {r['per_s']:.0f} candidates/s)",
+                f"{r['ratio']:.1f}x",
+                f">= {MIN_RATIO:.0f}x",
+                r["ratio"] >= MIN_RATIO,
+            )
         run_s = bench_run(name)
         add(
             f"{name}: `dfa run` end to end, base policy cached",
