@@ -87,7 +87,7 @@ def bench_world(
 
 def bench_run(name: str, shift: str = "object_ti", seed: int = 0) -> float:
     """Wall time of a whole `dfa run` in this process, base policy already cached."""
-    from dfa_viz.session import run_once
+    from dfa_viz.assemble import run_once
 
     base_policy(get_world(name))  # make sure it is cached
     t0 = time.perf_counter()

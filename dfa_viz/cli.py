@@ -46,7 +46,7 @@ def run(
         max_size: the largest edit the search tries.
         out: folder for the recording.
     """
-    from dfa_viz.session import run_once
+    from dfa_viz.assemble import run_once
 
     report = run_once(
         world,
@@ -76,7 +76,7 @@ def train(worlds: tuple[str, ...] = ("nav2d",), seed: int = 0, retrain: bool = F
         seed: training seed.
         retrain: ignore the cache and train again.
     """
-    from dfa_viz.session import train_base
+    from dfa_viz.assemble import train_base
 
     for name in worlds:
         path, rate = train_base(name, seed=seed, retrain=retrain)
