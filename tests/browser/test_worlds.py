@@ -16,7 +16,6 @@ KEYS = {0: "ArrowLeft", 1: "ArrowRight", 2: "ArrowUp", 3: "p", 4: "d", 5: "t"}
 
 
 def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
-    pytest.importorskip("minigrid")
     from search import compared_steps
 
     app = serve_app("doorkey")
@@ -75,7 +74,6 @@ def _plane_box(page, grey=(128, 128, 128), tol=12):
 
 
 def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
-    pytest.importorskip("mujoco")
     from sim.tabletop.tasks import VIEW_HALF_M
 
     app = serve_app("tabletop")

@@ -62,7 +62,6 @@ def test_tiny_experiment_runs_every_run(local_run):
 
 @pytest.mark.slow
 def test_ray_backend_gives_an_identical_csv(local_run, tmp_path):
-    pytest.importorskip("ray")
     summary = _run(tmp_path / "q2-ray", "ray")
     assert summary.executed == N_RUNS
     ours = (tmp_path / "q2-ray" / "runs.csv").read_bytes()
