@@ -13,16 +13,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--no-first-run",
-]
+from dfa_viz.bench_page import ARGS, CHROMIUM  # one launch recipe for tests and bench
+
 VIEWPORT = {"width": 1600, "height": 1000}
 FINETUNE_STEPS = 60  # enough for nav2d distractor_ti to go 50% -> 100%; keeps the suite quick
 OUTPUT = Path(os.environ.get("DFA_TEST_OUTPUT", "recordings/test-output")) / "browser"
