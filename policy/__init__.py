@@ -4,7 +4,7 @@ from policy.augment import augment
 from policy.checkpoint import load_policy, save_policy
 from policy.evaluate import evaluate, failing_test_task
 from policy.model import ImagePolicy, Policy, PolicyConfig
-from policy.train import TrainConfig, base_policy, behaviour_clone, finetune
+from policy.train import TrainConfig, base_policy, behaviour_clone, finetune, training_demos
 
 __all__ = [
     "ImagePolicy",
@@ -19,4 +19,5 @@ __all__ = [
     "finetune",
     "load_policy",
     "save_policy",
+    "training_demos",
 ]

@@ -8,9 +8,20 @@ from sim.core import Task, Trajectory, UserError, World
 N_EVAL = 10  # the paper's number of evaluation tasks
 
 
-def evaluate(world: World, policy: Policy, task: Task, *, n: int = N_EVAL, seed: int = 0) -> float:
-    """Fraction of n fresh tasks from task's R' that the policy solves (rolled out in one batch)."""
-    tasks = world.fresh_tasks(task, n, seed)
+def evaluate(
+    world: World,
+    policy: Policy,
+    task: Task,
+    *,
+    n: int = N_EVAL,
+    seed: int = 0,
+    layouts: str = "task",
+) -> float:
+    """Fraction of n fresh tasks from task's R' that the policy solves (rolled out in one batch).
+
+    layouts: where the fresh tasks put the objects (World.fresh_tasks).
+    """
+    tasks = world.fresh_tasks(task, n, seed, layouts=layouts)
     return sum(t.success for t in world.rollout_batch(tasks, policy)) / n
 
 

@@ -54,15 +54,25 @@ def behaviour_clone(
     *,
     config: TrainConfig = BASE,
     init: Policy | None = None,
+    replay: Sequence[Trajectory] = (),
+    replay_share: float = 0.5,
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
     """Fit a policy to the demonstrations (from a copy of `init` when given).
 
+    replay: trajectories the policy already knows (its own training demonstrations), mixed
+        into every batch as `replay_share` of it so that fitting the new demonstrations does
+        not erase what the policy did elsewhere.
     Returns the policy and the loss of every step.
     """
     torch.manual_seed(config.seed)
     gen = np.random.default_rng(config.seed)
     obs, act = transitions(world, demos)  # (N, H, W, 3), (N, A) | (N,)
+    n_new = len(obs)
+    n_replay = round(config.batch_size * replay_share) if replay else 0
+    if n_replay:
+        r_obs, r_act = transitions(world, replay)
+        obs, act = np.concatenate([obs, r_obs]), np.concatenate([act, r_act])
     if init is not None:
         net = init.copy().net
     else:
@@ -83,7 +93,17 @@ def behaviour_clone(
 
     losses = []
     for step in range(config.steps):
-        idx = torch.from_numpy(gen.integers(0, len(x_all), size=min(config.batch_size, len(x_all))))
+        if n_replay:  # (batch - n_replay) new transitions, then n_replay replayed ones
+            idx = torch.from_numpy(
+                np.concatenate(
+                    [
+                        gen.integers(0, n_new, size=config.batch_size - n_replay),
+                        gen.integers(n_new, len(x_all), size=n_replay),
+                    ]
+                )
+            )
+        else:
+            idx = torch.from_numpy(gen.integers(0, n_new, size=min(config.batch_size, n_new)))
         loss = loss_fn(net(x_all[idx]), y_all[idx])
         opt.zero_grad()
         loss.backward()
@@ -100,10 +120,31 @@ def finetune(
     demos: Sequence[Trajectory],
     *,
     config: TrainConfig = FINETUNE,
+    replay: Sequence[Trajectory] = (),
+    replay_share: float = 0.5,
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
-    """Finetune a copy of `base` on the demonstration and its augmentations; base is untouched."""
-    return behaviour_clone(world, demos, config=config, init=base, on_loss=on_loss)
+    """Finetune a copy of `base` on the demonstration and its augmentations; base is untouched.
+
+    replay, replay_share: see behaviour_clone (e.g. `training_demos(world)`).
+    """
+    return behaviour_clone(
+        world,
+        demos,
+        config=config,
+        init=base,
+        replay=replay,
+        replay_share=replay_share,
+        on_loss=on_loss,
+    )
+
+
+def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
+    """The expert demonstrations of the training tasks a base policy is cloned on."""
+    return [
+        world.demonstrate(world.train_task(seed=seed * N_TRAIN_DEMOS + i))
+        for i in range(N_TRAIN_DEMOS)
+    ]
 
 
 def cache_dir() -> Path:
@@ -123,10 +164,7 @@ def base_policy(
 
     Cached under cache_dir()/policies/<world>-<hash of the training recipe>/.
     """
-    demos = [
-        world.demonstrate(world.train_task(seed=seed * N_TRAIN_DEMOS + i))
-        for i in range(N_TRAIN_DEMOS)
-    ]
+    demos = training_demos(world, seed)
     recipe = {
         "world": world.name,
         "seed": seed,

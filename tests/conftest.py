@@ -2,9 +2,9 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import pytest  # noqa: E402
+import pytest
 
-from sim import get_world  # noqa: E402
+from sim import get_world
 
 
 @pytest.fixture(scope="session")

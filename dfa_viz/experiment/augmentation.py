@@ -1,6 +1,6 @@
-"""Filling a finetuning budget: the demonstration plus variants of it over one user concept.
+"""Filling a finetuning budget: the demonstration plus variants over one user concept.
 
-A *variant* of the demonstration keeps its actions and edits every one of its states the same
+A *variant* of a demonstration keeps its actions and edits every one of its states the same
 way (policy/augment.py's rule): a TI look takes another acceptable instantiation; a TI presence
 removes the object or adds it in an acceptable look at a place off the demonstrated path
 (`world.placements`). A user concept covering several slots (DoorKey's three lava tiles) picks
@@ -9,15 +9,21 @@ slots' options. That product can be huge (two tabletop distractors: ~5 * 10^7), 
 are drawn from a seeded random order of it instead of being enumerated, skipping any that
 leave the scene unchanged, repeat an earlier variant's scene or stack two objects on one place.
 
-The stream of variants for one (task, concept) is fixed by the seed, and a budget takes a
-prefix of it: a larger budget keeps every trajectory of a smaller one.
+Variants are made from *sources*: the user's demonstration of the test task and the base
+policy's own training demonstrations, each edited as R' allows (a label says a concept does
+not matter anywhere, not only in the scene it was given in). Sources are taken in turn, those
+with a layout unlike the test task's first, so a small budget spreads over many layouts.
+
+The stream of variants for one (source, concept) is fixed by the seed, and a budget takes a
+prefix of the walk over the sources: a larger budget keeps every trajectory of a smaller one.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -127,10 +133,125 @@ def variant_stream(
         yield ops
 
 
-def concept_rng(world: str, shift: str, seed: int, concept: str, informed: bool):
+def concept_rng(world: str, shift: str, seed: int, concept: str, informed: bool, source: int = 0):
     return np.random.default_rng(
-        [seed, stable_int("variants", world, shift, concept, int(informed))]
+        [seed, stable_int("variants", world, shift, concept, int(informed)), source]
     )
+
+
+@dataclass(frozen=True)
+class Source:
+    """A demonstration variants are made from, and the task that says which edits fit it:
+    the test task's R' over this demonstration's own initial scene."""
+
+    task: Task
+    demo: Trajectory
+
+
+def same_layout(a: Scene, b: Scene) -> bool:
+    """True when every object present in `a` and the agent stand where they do in `b`."""
+    return a.agent[:2] == b.agent[:2] and all(
+        o.pos == b.obj(o.slot).pos for o in a.objects if o.present
+    )
+
+
+def sources(task: Task, demo: Trajectory, known: Sequence[Trajectory]) -> list[Source]:
+    """The demonstrations variants are taken from, in turn: one known demonstration (the base
+    policy's training demonstrations) per layout unlike the test task's, then the user's
+    demonstration, then the rest. Small budgets thereby cover as many layouts as they can."""
+    first: list[Trajectory] = []
+    rest: list[Trajectory] = []
+    for d in known:
+        covered = [task.scene, *(f.scenes[0] for f in first)]
+        unlike = not any(same_layout(d.scenes[0], c) for c in covered)
+        (first if unlike else rest).append(d)
+    return [
+        *(Source(task.with_scene(d.scenes[0]), d) for d in first),
+        Source(task, demo),
+        *(Source(task.with_scene(d.scenes[0]), d) for d in rest),
+    ]
+
+
+def _in_scene(concept: UserConcept, scene: Scene) -> UserConcept | None:
+    """The part of a user concept a scene shows: presence, and the looks of present objects."""
+    members = tuple((s, c) for s, c in concept.members if c == PRESENCE or scene.obj(s).present)
+    return UserConcept(concept.name, members) if members else None
+
+
+def variants_from_sources(
+    world: World,
+    srcs: Sequence[Source],
+    pick: Callable[[int], UserConcept],
+    n: int,
+    *,
+    informed: bool,
+    seed: int,
+    n_concepts: int = 1,
+) -> list[tuple[int, tuple[Op, ...]]]:
+    """n variants as (source index, ops): the i-th over the concept pick(i), from the next
+    source in turn that still has a new variant of it (each (source, concept) has its own
+    seeded stream). Fewer when the concepts run out: a concept found in no source is dropped,
+    and the walk ends once all `n_concepts` concepts have been dropped."""
+    streams: dict[tuple[int, str], Iterator[tuple[Op, ...]]] = {}
+
+    def stream(k: int, concept: UserConcept) -> Iterator[tuple[Op, ...]]:
+        key = (k, concept.name)
+        if key not in streams:
+            part = _in_scene(concept, srcs[k].task.scene)
+            rng = concept_rng(world.name, srcs[k].task.shift, seed, concept.name, informed, k)
+            streams[key] = (
+                iter(())
+                if part is None
+                else variant_stream(
+                    world, srcs[k].task, srcs[k].demo, part, informed=informed, rng=rng
+                )
+            )
+        return streams[key]
+
+    # two sources can share a layout (the user's scene may be a training scene with one
+    # concept changed), so a variant is new only if no source and no earlier variant has it
+    seen = {src.task.scene for src in srcs}
+
+    def fresh(k: int, concept: UserConcept) -> tuple[Op, ...] | None:
+        for ops in stream(k, concept):
+            scene = transform(srcs[k].task.scene, ops)
+            if scene not in seen:
+                seen.add(scene)
+                return ops
+        return None
+
+    out: list[tuple[int, tuple[Op, ...]]] = []
+    dropped: set[str] = set()
+    turn, i = 0, 0
+    while len(out) < n and len(dropped) < n_concepts:
+        concept = pick(i)
+        i += 1
+        if concept.name in dropped:
+            continue
+        for j in range(len(srcs)):
+            k = (turn + j) % len(srcs)
+            ops = fresh(k, concept)
+            if ops is not None:
+                out.append((k, ops))
+                turn = k + 1
+                break
+        else:
+            dropped.add(concept.name)
+    return out
+
+
+def render_from_sources(
+    world: World, srcs: Sequence[Source], variants: Sequence[tuple[int, tuple[Op, ...]]]
+) -> list[Trajectory]:
+    """The variants' trajectories, in order (one batched render per source)."""
+    out: list[Trajectory | None] = [None] * len(variants)
+    for k, src in enumerate(srcs):
+        mine = [i for i, (kk, _) in enumerate(variants) if kk == k]
+        for i, traj in zip(
+            mine, render_variants(world, src.demo, [variants[i][1] for i in mine]), strict=True
+        ):
+            out[i] = traj
+    return [t for t in out if t is not None]
 
 
 def render_variants(world: World, demo: Trajectory, variants: list[tuple[Op, ...]]):
@@ -159,51 +280,35 @@ def fill_budget(demo: Trajectory, variants: list[Trajectory], budget: int) -> li
 
 def variants_for_concept(
     world: World,
-    task: Task,
-    demo: Trajectory,
+    srcs: Sequence[Source],
     concept: UserConcept,
     n: int,
     *,
     informed: bool,
     seed: int,
-) -> list[tuple[Op, ...]]:
-    """The first n variants of the concept's seeded stream (fewer when it has fewer)."""
-    rng = concept_rng(world.name, task.shift, seed, concept.name, informed)
-    stream = variant_stream(world, task, demo, concept, informed=informed, rng=rng)
-    return list(itertools.islice(stream, n))
+) -> list[tuple[int, tuple[Op, ...]]]:
+    """The first n variants over one concept, taken from the sources in turn."""
+    return variants_from_sources(world, srcs, lambda i: concept, n, informed=informed, seed=seed)
 
 
 def random_concept_variants(
     world: World,
-    task: Task,
-    demo: Trajectory,
+    srcs: Sequence[Source],
     concepts: Sequence[UserConcept],
     n: int,
     *,
     seed: int,
-) -> tuple[list[tuple[Op, ...]], list[str]]:
-    """NH-random: n variants, each over a concept drawn uniformly from `concepts`.
+) -> list[tuple[int, tuple[Op, ...]]]:
+    """NH-random: n variants, the i-th over a concept drawn uniformly from `concepts` (every
+    instantiation allowed), taken from the sources in turn."""
+    rng = np.random.default_rng([seed, stable_int("nh_random", world.name, srcs[0].task.shift)])
+    picks: list[UserConcept] = []
 
-    The i-th draw picks the concept of the i-th variant; each concept's variants come from its
-    own stream (every instantiation allowed). Returns the variants and their concepts' names.
-    """
-    rng = np.random.default_rng([seed, stable_int("nh_random", world.name, task.shift)])
-    picks = [concepts[int(rng.integers(len(concepts)))] for _ in range(n)]
-    streams = {
-        c.name: variant_stream(
-            world,
-            task,
-            demo,
-            c,
-            informed=False,
-            rng=concept_rng(world.name, task.shift, seed, c.name, False),
-        )
-        for c in concepts
-    }
-    variants, names = [], []
-    for c in picks:
-        ops = next(streams[c.name], None)
-        if ops is not None:
-            variants.append(ops)
-            names.append(c.name)
-    return variants, names
+    def pick(i: int) -> UserConcept:
+        while len(picks) <= i:
+            picks.append(concepts[int(rng.integers(len(concepts)))])
+        return picks[i]
+
+    return variants_from_sources(
+        world, srcs, pick, n, informed=False, seed=seed, n_concepts=len(concepts)
+    )

@@ -10,10 +10,14 @@ What one run does:
 2. The concept (conditions.choose): random per trajectory (NH-random), the right one
    (Oracle), or a simulated user's pick (Baseline H; CF H after the real counterfactual search
    on this task with the base policy).
-3. The finetuning set (augmentation.fill_budget): the demonstration plus up to budget - 1
-   distinct variants of it over the concept, cycled to exactly `budget` trajectories.
-4. Finetune a copy of the base policy (seeded by the run's seed) and evaluate it on
-   `n_eval` fresh tasks from R' (the same tasks for every condition and budget of the seed).
+3. The finetuning set: the demonstration plus budget - 1 distinct variants over the concept,
+   taken in turn from the base policy's 10 training demonstrations and the user's
+   demonstration (augmentation.sources), cycled to exactly `budget` trajectories when the
+   concept has fewer variants.
+4. Finetune a copy of the base policy (seeded by the run's seed) on that set, with its own
+   training demonstrations replayed as `replay_share` of every batch, and evaluate it on
+   `n_eval` fresh tasks from R' placed in the training layouts (the same tasks for every
+   condition and budget of the seed).
 """
 
 from __future__ import annotations
@@ -70,6 +74,10 @@ class Settings:
     """Finetuning gradient steps (batch FINETUNE.batch_size, learning rate FINETUNE.lr)."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""
+    replay_share: float = 0.5
+    """Share of every finetuning batch replayed from the base policy's training demonstrations."""
+    layouts: str = "train"
+    """Where the fresh evaluation tasks put the objects (World.fresh_tasks)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -103,6 +111,8 @@ class Prepared:
 
     task: Task
     demo: Trajectory
+    known: tuple[Trajectory, ...]
+    """The base policy's training demonstrations (sources of variants, and replayed)."""
     success_before: float
     """The base policy's success on the same fresh tasks the finetuned ones are scored on."""
     visible: tuple[UserConcept, ...]
@@ -119,25 +129,42 @@ def _policy(world_name: str):
     return base_policy(get_world(world_name))
 
 
+@functools.lru_cache(maxsize=3)
+def _known(world_name: str) -> tuple[Trajectory, ...]:
+    from policy import training_demos
+    from sim import get_world
+
+    return tuple(training_demos(get_world(world_name)))
+
+
 @functools.lru_cache(maxsize=8)
-def prepare(world_name: str, shift: str, seed: int, n_eval: int) -> Prepared:
+def prepare(
+    world_name: str, shift: str, seed: int, n_eval: int, layouts: str = "train"
+) -> Prepared:
     from policy import evaluate, failing_test_task
     from sim import get_world
 
     world, policy = get_world(world_name), _policy(world_name)
     task, _ = failing_test_task(world, policy, ti_shift(shift), seed)
     demo = world.demonstrate(task)
-    before = evaluate(world, policy, task, n=n_eval, seed=seed)
-    return Prepared(task, demo, before, visible_concepts(world, task), right_concept(world, task))
+    before = evaluate(world, policy, task, n=n_eval, seed=seed, layouts=layouts)
+    return Prepared(
+        task,
+        demo,
+        _known(world_name),
+        before,
+        visible_concepts(world, task),
+        right_concept(world, task),
+    )
 
 
 @functools.lru_cache(maxsize=8)
-def offered(world_name: str, shift: str, seed: int, n_eval: int, max_size: int):
+def offered(world_name: str, shift: str, seed: int, n_eval: int, layouts: str, max_size: int):
     """The counterfactual search on the task: (concepts of its best edit, the edit as text)."""
     from search import SearchConfig, counterfactual_search
     from sim import get_world
 
-    world, prep = get_world(world_name), prepare(world_name, shift, seed, n_eval)
+    world, prep = get_world(world_name), prepare(world_name, shift, seed, n_eval, layouts)
     result = counterfactual_search(
         world,
         _policy(world_name),
@@ -162,11 +189,16 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     world = get_world(spec.world)
-    prep = prepare(spec.world, spec.shift, spec.seed, settings.n_eval)
+    prep = prepare(spec.world, spec.shift, spec.seed, settings.n_eval, settings.layouts)
     cf_concepts, cf_edit = None, ""
     if spec.condition == "cf_h":
         cf_concepts, cf_edit = offered(
-            spec.world, spec.shift, spec.seed, settings.n_eval, settings.max_size
+            spec.world,
+            spec.shift,
+            spec.seed,
+            settings.n_eval,
+            settings.layouts,
+            settings.max_size,
         )
     names = tuple(c.name for c in prep.visible)
     choice = choose(
@@ -179,20 +211,26 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         offered=cf_concepts,
     )
     n = spec.budget - 1
+    srcs = aug.sources(prep.task, prep.demo, prep.known)
     if choice.concept is None:
-        ops, _ = aug.random_concept_variants(
-            world, prep.task, prep.demo, prep.visible, n, seed=spec.seed
-        )
+        ops = aug.random_concept_variants(world, srcs, prep.visible, n, seed=spec.seed)
     else:
         concept = concept_named(prep.visible, choice.concept)
-        ops = aug.variants_for_concept(
-            world, prep.task, prep.demo, concept, n, informed=True, seed=spec.seed
-        )
-    variants = aug.render_variants(world, prep.demo, ops)
+        ops = aug.variants_for_concept(world, srcs, concept, n, informed=True, seed=spec.seed)
+    variants = aug.render_from_sources(world, srcs, ops)
     demos = aug.fill_budget(prep.demo, variants, spec.budget)
     config = TrainConfig(settings.steps, FINETUNE.batch_size, FINETUNE.lr, spec.seed)
-    tuned, losses = finetune(world, _policy(spec.world), demos, config=config)
-    success = evaluate(world, tuned, prep.task, n=settings.n_eval, seed=spec.seed)
+    tuned, losses = finetune(
+        world,
+        _policy(spec.world),
+        demos,
+        config=config,
+        replay=prep.known,
+        replay_share=settings.replay_share,
+    )
+    success = evaluate(
+        world, tuned, prep.task, n=settings.n_eval, seed=spec.seed, layouts=settings.layouts
+    )
     row: dict[str, object] = {
         "world": spec.world,
         "shift": spec.shift,

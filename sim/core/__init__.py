@@ -5,13 +5,14 @@ from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
 from sim.core.scene import Obj, Scene
-from sim.core.task import SHIFTS, TRAIN, Reward, Task, check_shift
+from sim.core.task import LAYOUTS, SHIFTS, TRAIN, Reward, Task, check_layouts, check_shift
 from sim.core.trajectory import Trajectory
 from sim.core.world import ActBatch, World
 
 __all__ = [
     "ABSENT",
     "EMPTY",
+    "LAYOUTS",
     "PRESENCE",
     "PRESENT",
     "SHIFTS",
@@ -32,6 +33,7 @@ __all__ = [
     "UserError",
     "World",
     "apply",
+    "check_layouts",
     "check_shift",
     "effective",
     "single_changes",

@@ -10,12 +10,19 @@ from sim.core.scene import Scene
 
 SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr", "other")
 TRAIN = "train"
+LAYOUTS = ("task", "train")  # where fresh tasks put the objects (World.fresh_tasks)
 
 
 def check_shift(shift: str) -> str:
     if shift not in SHIFTS:
         raise UserError(f"unknown shift {shift!r}; accepted: {', '.join(SHIFTS)}")
     return shift
+
+
+def check_layouts(layouts: str) -> str:
+    if layouts not in LAYOUTS:
+        raise UserError(f"unknown layouts {layouts!r}; accepted: {', '.join(LAYOUTS)}")
+    return layouts
 
 
 @dataclass(frozen=True)

@@ -79,8 +79,14 @@ class World(abc.ABC):
         """A shifted test task of kind `shift` (one of sim.core.task.SHIFTS)."""
 
     @abc.abstractmethod
-    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
-        """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning)."""
+    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
+        """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning).
+
+        layouts: "task" keeps the task's positions (R' is about how things look); "train"
+        places the objects as a random training layout does, so success also asks whether
+        what the policy learnt carries over to every layout it was trained on. The `other`
+        shift varies positions beyond the training layouts either way.
+        """
 
     @abc.abstractmethod
     def expert_action(self, task: Task, scene: Scene) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.core import PRESENCE, Reward, Scene, Task, Trajectory, check_shift
+from sim.core import PRESENCE, Reward, Scene, Task, Trajectory, check_layouts, check_shift
 from sim.doorkey.expert import path_cells, solvable
 from sim.doorkey.layout import (
     COLUMNS,
@@ -218,11 +218,14 @@ def avoid_reward(train: Reward, slot: str, colour: str) -> Reward:
     )
 
 
-def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
+def fresh_tasks(task: Task, n: int, seed: int, layouts: str = "task") -> list[Task]:
     """n tasks from the R' of `task`: each allowed (slot, concept) drawn from its allowed values;
-    the task's rows kept (for `other`, key, door and goal on random rows); present lava placed
-    as `build` does. Drawn from np.random.default_rng([seed, 3])."""
+    the task's rows kept (layouts="task") or a random training layout's ("train"); for
+    `other`, key, door and goal on random rows; present lava placed as `build` does. Drawn
+    from np.random.default_rng([seed, 3]) (layouts from [seed, 4])."""
+    check_layouts(layouts)
     rng = np.random.default_rng([seed, 3])
+    layout_rng = np.random.default_rng([seed, 4])
     rows0, colours0 = rows_of(task.scene), _colours(task.scene)
 
     def one() -> Scene | None:
@@ -237,6 +240,8 @@ def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
                 p, c = lavas[i]
                 lavas[i] = (v == "present", c) if concept == PRESENCE else (p, v)
         rows = dict(rows0)
+        if layouts == "train":
+            rows = train_rows(int(layout_rng.integers(len(TRAIN_LAYOUTS))))
         if task.shift == "other":
             rows = {s: int(rng.choice(ROWS)) for s in OBJ_SLOTS}
         return build(rows, colours, tuple(lavas), rng, keep_clear=task.reward.avoid)

@@ -18,6 +18,7 @@ from sim.core import (
     Task,
     Trajectory,
     World,
+    check_layouts,
     check_shift,
 )
 from sim.nav2d import render as R
@@ -212,13 +213,16 @@ class Nav2DWorld(World):
         )
         return Task(self.name, self._scene(goal, goal_pos=(-5.0, -5.0)), reward, shift, seed)
 
-    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
+    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
         """Draw each open (slot, concept) of R' from its allowed values.
 
-        The agent and goal keep the task's corners (R' is about what the goal looks like) and a
-        present distractor takes any free corner; for `other`, the corners vary too.
+        The agent and goal keep the task's corners (layouts="task") or take a random training
+        layout ("train"); a present distractor takes any free corner; for `other`, the
+        corners vary over every pair.
         """
+        check_layouts(layouts)
         rng = np.random.default_rng([seed, 3])
+        layout_rng = np.random.default_rng([seed, 4])
         tasks = []
         for i in range(n):
             scene = task.scene
@@ -236,6 +240,11 @@ class Nav2DWorld(World):
                 start, goal = [(a, b) for a in R.CORNERS for b in R.CORNERS if a != b][
                     rng.integers(12)
                 ]
+                scene = Scene(scene.world, scene.objects, (*start, 0.0)).with_obj(
+                    Obj(g.slot, True, g.values, goal)
+                )
+            elif layouts == "train":
+                start, goal = TRAIN_LAYOUTS[layout_rng.integers(len(TRAIN_LAYOUTS))]
                 scene = Scene(scene.world, scene.objects, (*start, 0.0)).with_obj(
                     Obj(g.slot, True, g.values, goal)
                 )

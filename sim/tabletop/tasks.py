@@ -25,6 +25,7 @@ from sim.core import (
     Slot,
     Task,
     Trajectory,
+    check_layouts,
     check_shift,
 )
 from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
@@ -250,10 +251,14 @@ def _area_of(obj: Obj) -> str:
     raise ValueError(f"{obj.slot} is not at an area centre: {obj.pos[:2]}")
 
 
-def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
-    """n tasks drawn from R': each open (slot, concept) from its allowed values; present
-    distractors in random free areas; for `other`, the object and goal in random areas."""
+def fresh_tasks(task: Task, n: int, seed: int, layouts: str = "task") -> list[Task]:
+    """n tasks drawn from R': each open (slot, concept) from its allowed values; the object
+    and goal in the task's areas (layouts="task") or a random training layout's ("train");
+    present distractors in random free areas; for `other`, the object and goal in random
+    areas."""
+    check_layouts(layouts)
     rng = np.random.default_rng([seed, 3])
+    layout_rng = np.random.default_rng([seed, 4])
     out = []
     for i in range(n):
         scene = task.scene
@@ -269,6 +274,8 @@ def fresh_tasks(task: Task, n: int, seed: int) -> list[Task]:
         if task.shift == "other":
             order = rng.permutation(len(areas))
             oa, ga = areas[order[0]], areas[order[1]]
+        elif layouts == "train":
+            oa, ga = TRAIN_LAYOUTS[layout_rng.integers(len(TRAIN_LAYOUTS))]
         else:
             oa, ga = _area_of(scene.obj("object")), _area_of(scene.obj("goal"))
         for slot, area in (("object", oa), ("goal", ga)):

@@ -115,8 +115,8 @@ class TabletopWorld(World):
     def test_task(self, shift: str, seed: int) -> Task:
         return TK.test_task(shift, seed, self.colours)
 
-    def fresh_tasks(self, task: Task, n: int, seed: int) -> list[Task]:
-        return TK.fresh_tasks(task, n, seed)
+    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
+        return TK.fresh_tasks(task, n, seed, layouts)
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return TK.placements(task, slot, demo)

@@ -176,19 +176,47 @@ def test_simulated_users_are_right_at_the_paper_rate():
 
 def test_variants_are_distinct_and_a_larger_budget_extends_a_smaller_one(nav, nav_policy):
     prep = prepare("nav2d", "distractor", 0, 10)
+    srcs = aug.sources(prep.task, prep.demo, prep.known)
     concept = concept_named(prep.visible, "distractor.presence")
     kw = dict(informed=True, seed=3)
-    few = aug.variants_for_concept(nav, prep.task, prep.demo, concept, 4, **kw)
-    many = aug.variants_for_concept(nav, prep.task, prep.demo, concept, 1000, **kw)
-    assert many[:4] == few
-    scenes = [aug.transform(prep.task.scene, ops) for ops in many]
-    assert len(set(scenes)) == len(scenes) and prep.task.scene not in scenes
-    trajs = aug.render_variants(nav, prep.demo, few)
-    for t in trajs:
-        np.testing.assert_array_equal(t.actions, prep.demo.actions)
-        assert t.observations.shape == prep.demo.observations.shape
+    few = aug.variants_for_concept(nav, srcs, concept, 4, **kw)
+    many = aug.variants_for_concept(nav, srcs, concept, 1000, **kw)
+    assert many[:4] == few and len(many) > 100
+    scenes = [aug.transform(srcs[k].task.scene, ops) for k, ops in many]
+    assert len(set(scenes)) == len(scenes)
+    assert not {s.task.scene for s in srcs} & set(scenes), "no variant is a source scene"
+    # small budgets spread over layouts: the first variants come from different sources
+    assert len({k for k, _ in few}) == 4
+    trajs = aug.render_from_sources(nav, srcs, few)
+    for (k, _), t in zip(few, trajs, strict=True):
+        np.testing.assert_array_equal(t.actions, srcs[k].demo.actions)
+        assert t.observations.shape == srcs[k].demo.observations.shape
     filled = aug.fill_budget(prep.demo, trajs, 11)
     assert len(filled) == 11 and filled[0] is prep.demo and filled[5] is prep.demo
+
+
+def test_sources_put_unseen_layouts_first(nav, nav_policy):
+    prep = prepare("nav2d", "object", 0, 10)
+    srcs = aug.sources(prep.task, prep.demo, prep.known)
+    assert len(srcs) == len(prep.known) + 1
+    user = [s.demo for s in srcs].index(prep.demo)
+    firsts = [s.task.scene for s in srcs[:user]]
+    assert user >= 5
+    for i, a in enumerate(firsts):
+        assert not aug.same_layout(a, prep.task.scene)
+        assert not any(aug.same_layout(a, b) for b in firsts[:i])
+    # every source keeps the test task's R' and its own scene
+    assert all(s.task.reward == prep.task.reward for s in srcs)
+    assert all(s.task.scene == s.demo.scenes[0] for s in srcs)
+
+
+def test_random_concepts_cover_the_visible_ones(nav, nav_policy):
+    prep = prepare("nav2d", "distractor", 1, 10)
+    srcs = aug.sources(prep.task, prep.demo, prep.known)
+    picks = aug.random_concept_variants(nav, srcs, prep.visible, 60, seed=1)
+    assert len(picks) == 60
+    assert picks[:20] == aug.random_concept_variants(nav, srcs, prep.visible, 20, seed=1)
+    assert picks != aug.random_concept_variants(nav, srcs, prep.visible, 60, seed=2)
 
 
 def test_grouped_presence_variants_draw_from_a_huge_product():
@@ -196,9 +224,10 @@ def test_grouped_presence_variants_draw_from_a_huge_product():
     task = world.test_task("distractor_ti", 0)
     demo = world.demonstrate(task)
     concept = concept_named(visible_concepts(world, task), "lava.presence")
-    variants = aug.variants_for_concept(world, task, demo, concept, 30, informed=True, seed=0)
+    srcs = [aug.Source(task, demo)]
+    variants = aug.variants_for_concept(world, srcs, concept, 30, informed=True, seed=0)
     assert len(variants) == 30
-    for ops in variants:
+    for _, ops in variants:
         scene = aug.transform(task.scene, ops)
         cells = [o.pos for o in scene.objects if o.present and o.slot.startswith("lava")]
         assert len(cells) == len(set(cells)), "no two lava tiles on one cell"

@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 import torch
 
-from policy import augment, evaluate, failing_test_task, load_policy, save_policy
+from policy import (
+    augment,
+    evaluate,
+    failing_test_task,
+    finetune,
+    load_policy,
+    save_policy,
+    training_demos,
+)
 from policy.model import ImagePolicy, Policy, PolicyConfig
 from sim.core import SHIFTS, Feedback, Label, UserError
 
@@ -87,3 +95,40 @@ def test_tr_feedback_adds_nothing(nav, nav_policy):
 def test_evaluation_is_seeded(nav, nav_policy):
     task, _ = failing_test_task(nav, nav_policy, "object_ti", 1)
     assert evaluate(nav, nav_policy, task, seed=4) == evaluate(nav, nav_policy, task, seed=4)
+
+
+def test_replay_keeps_what_the_base_policy_could_do(nav, nav_policy):
+    """Finetuning on one demonstration alone erases the other training layouts; replaying
+    the base policy's own demonstrations in every batch keeps them."""
+    known = training_demos(nav)
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    demo = nav.demonstrate(task)
+    train = [nav.train_task(seed=i) for i in range(1, 9)]
+
+    def solved(policy):
+        return sum(t.success for t in nav.rollout_batch(train, policy))
+
+    assert solved(nav_policy) == len(train)
+    alone, _ = finetune(nav, nav_policy, [demo] * 5)
+    kept, losses = finetune(nav, nav_policy, [demo] * 5, replay=known)
+    assert solved(alone) <= len(train) // 2
+    assert solved(kept) >= len(train) - 1
+    assert np.isfinite(losses).all()
+
+
+def test_fresh_tasks_over_training_layouts(nav, nav_policy):
+    from sim.nav2d.world import TRAIN_LAYOUTS
+
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    same = nav.fresh_tasks(task, 30, seed=2)
+    moved = nav.fresh_tasks(task, 30, seed=2, layouts="train")
+    assert all(t.scene.agent == task.scene.agent for t in same)
+    layouts = {(t.scene.agent[:2], t.scene.obj("goal").pos) for t in moved}
+    assert layouts <= set(TRAIN_LAYOUTS) and len(layouts) >= 6
+    # the looks are drawn as before: only the positions differ
+    for a, b in zip(same, moved, strict=True):
+        assert a.scene.obj("goal").values == b.scene.obj("goal").values
+    with pytest.raises(UserError, match="layouts"):
+        nav.fresh_tasks(task, 3, seed=2, layouts="anywhere")
+    score = evaluate(nav, nav_policy, task, seed=2, layouts="train")
+    assert score == evaluate(nav, nav_policy, task, seed=2, layouts="train")

@@ -15,7 +15,7 @@ from minigrid.core.world_object import Lava
 import sim
 from sim.core import PRESENCE, SHIFTS, Edit, Obj, Scene, Trajectory, UserError, single_changes
 from sim.doorkey.env import DoorKeyEnv
-from sim.doorkey.expert import path_cells
+from sim.doorkey.expert import path_cells, solvable
 from sim.doorkey.layout import (
     CLOSED,
     FORWARD,
@@ -30,7 +30,13 @@ from sim.doorkey.layout import (
     rows_of,
 )
 from sim.doorkey.objects import PinkLava, build_grid
-from sim.doorkey.tasks import TRAIN_COLOURS, neighbours, unseen_rows
+from sim.doorkey.tasks import (
+    TRAIN_COLOURS,
+    TRAIN_LAYOUTS,
+    _colours,
+    neighbours,
+    unseen_rows,
+)
 from sim.doorkey.world import DoorKeyWorld
 
 SEEDS = range(4)
@@ -390,6 +396,19 @@ def test_fresh_tasks_follow_the_reward(world):
                 )
                 if concept == PRESENCE or o.present:
                     assert now in values
+
+
+def test_fresh_tasks_can_take_the_training_layouts(world):
+    for shift in ("object_ti", "distractor_ti"):
+        task = world.test_task(shift, 1)
+        same = world.fresh_tasks(task, 12, seed=4)
+        moved = world.fresh_tasks(task, 12, seed=4, layouts="train")
+        assert {rows_of(f.scene)["goal"] for f in same} == {rows_of(task.scene)["goal"]}
+        rows = {tuple(rows_of(f.scene).values()) for f in moved}
+        assert rows <= set(TRAIN_LAYOUTS) and len(rows) >= 4
+        for a, b in zip(same, moved, strict=True):
+            assert _colours(a.scene) == _colours(b.scene)
+            assert solvable(parse(b.scene))
 
 
 def test_placements_leave_the_demonstration_unchanged(world):

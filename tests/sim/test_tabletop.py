@@ -223,6 +223,17 @@ def test_shifts_follow_the_reward_conventions(world):
                 assert layout in TK.TRAIN_LAYOUTS
 
 
+def test_fresh_tasks_can_take_the_training_layouts(world):
+    task = world.test_task("object_ti", 1)
+    moved = world.fresh_tasks(task, 16, seed=5, layouts="train")
+    layouts = {
+        (TK._area_of(f.scene.obj("object")), TK._area_of(f.scene.obj("goal"))) for f in moved
+    }
+    assert layouts <= set(TK.TRAIN_LAYOUTS) and len(layouts) >= 4
+    for a, b in zip(world.fresh_tasks(task, 16, seed=5), moved, strict=True):
+        assert [o.values for o in a.scene.objects] == [o.values for o in b.scene.objects]
+
+
 def test_fresh_tasks_draw_from_the_reward(world):
     for shift in SHIFTS:
         task = world.test_task(shift, 1)
