@@ -140,12 +140,20 @@ def run_bench(
     def add(what: str, value: str, target: str = "", ok: bool | None = None) -> None:
         rows.append((what, value, target, "" if ok is None else ("yes" if ok else "NO")))
 
+    def costs(name: str, run_s: float) -> None:
+        from dfa_viz.bench_costs import cost_rows
+
+        rrd = Path("recordings") / "bench" / f"{name}-object_ti-seed0.rrd"
+        for row in cost_rows(name, run_s, rrd, repeats=repeats):
+            add(*row)
+
     for name in worlds:
         if name == "tabletop":
             from dfa_viz.bench_tabletop import bench_rows, bench_tabletop
 
             for what, value, target, ok in bench_rows(bench_tabletop(repeats=repeats)):
                 add(f"tabletop: {what}", value, target, ok)
+            costs(name, bench_run(name))
             continue
         sizes, max_s = TIME_TARGETS[name]
         label = " + ".join(f"size {k}" for k in sizes)
@@ -174,6 +182,7 @@ def run_bench(
             "< 30 s",
             run_s < 30,
         )
+        costs(name, run_s)
     if page:
         from dfa_viz.bench_page import bench_page
 
