@@ -26,6 +26,7 @@ def experiment_q2(
     out: Path = Path("recordings/experiments/q2"),
     conditions: tuple[Condition, ...] = ("nh_random", "baseline_h", "cf_h", "oracle"),
     steps: int = 300,
+    steps_per_trajectory: int = 10,
     n_eval: int = 10,
     max_size: int = 2,
     ray_address: str | None = None,
@@ -58,7 +59,8 @@ def experiment_q2(
         backend: local (a process pool on this machine) or ray (pip install 'dfa[ray]').
         out: the results folder.
         conditions: which conditions.
-        steps: finetuning gradient steps per run.
+        steps: fewest finetuning gradient steps per run.
+        steps_per_trajectory: a run finetunes max(STEPS, this x budget) steps.
         n_eval: fresh tasks each finetuned policy is scored on.
         max_size: largest edit the counterfactual search tries (CF H).
         ray_address: an existing Ray cluster ("auto", "ray://host:10001"); default: start one here.
@@ -70,7 +72,12 @@ def experiment_q2(
 
     if seeds < 1:
         raise UserError(f"--seeds is how many seeds to run, at least 1, not {seeds}")
-    for name, value in (("steps", steps), ("n-eval", n_eval), ("max-size", max_size)):
+    for name, value in (
+        ("steps", steps),
+        ("steps-per-trajectory", steps_per_trajectory),
+        ("n-eval", n_eval),
+        ("max-size", max_size),
+    ):
         if value < 1:
             raise UserError(f"--{name} must be at least 1, not {value}")
     plan = Plan(
@@ -83,7 +90,12 @@ def experiment_q2(
     summary = run_experiment(
         plan,
         out=out,
-        settings=Settings(n_eval=n_eval, steps=steps, max_size=max_size),
+        settings=Settings(
+            n_eval=n_eval,
+            steps=steps,
+            steps_per_trajectory=steps_per_trajectory,
+            max_size=max_size,
+        ),
         backend=backend,
         workers=workers,
         ray_address=ray_address,

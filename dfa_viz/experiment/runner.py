@@ -14,7 +14,8 @@ What one run does:
    taken in turn from the base policy's 10 training demonstrations and the user's
    demonstration (augmentation.sources), cycled to exactly `budget` trajectories when the
    concept has fewer variants.
-4. Finetune a copy of the base policy (seeded by the run's seed) on that set, with its own
+4. Finetune a copy of the base policy (seeded by the run's seed) on that set for
+   max(steps, steps_per_trajectory * budget) steps, with its own
    training demonstrations replayed as `replay_share` of every batch, and evaluate it on
    `n_eval` fresh tasks from R' placed in the training layouts (the same tasks for every
    condition and budget of the seed).
@@ -71,7 +72,10 @@ class Settings:
     n_eval: int = N_EVAL
     """Fresh tasks from R' each finetuned policy is evaluated on (the paper's 10)."""
     steps: int = FINETUNE.steps
-    """Finetuning gradient steps (batch FINETUNE.batch_size, learning rate FINETUNE.lr)."""
+    """Fewest finetuning gradient steps (batch FINETUNE.batch_size, learning rate FINETUNE.lr)."""
+    steps_per_trajectory: int = 10
+    """Steps per finetuning trajectory above that: a run takes max(steps, this * budget), so
+    a large budget gets as many passes over its data as a small one."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""
     replay_share: float = 0.5
@@ -81,6 +85,9 @@ class Settings:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def steps_for(self, budget: int) -> int:
+        return max(self.steps, self.steps_per_trajectory * budget)
 
 
 @dataclass(frozen=True, order=True)
@@ -219,7 +226,8 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         ops = aug.variants_for_concept(world, srcs, concept, n, informed=True, seed=spec.seed)
     variants = aug.render_from_sources(world, srcs, ops)
     demos = aug.fill_budget(prep.demo, variants, spec.budget)
-    config = TrainConfig(settings.steps, FINETUNE.batch_size, FINETUNE.lr, spec.seed)
+    steps = settings.steps_for(spec.budget)
+    config = TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, spec.seed)
     tuned, losses = finetune(
         world,
         _policy(spec.world),
