@@ -27,6 +27,9 @@ def experiment_q2(
     conditions: tuple[Condition, ...] = ("nh_random", "baseline_h", "cf_h", "oracle"),
     steps: int = 300,
     steps_per_trajectory: int = 10,
+    replay_share: float = 0.5,
+    layouts: Literal["train", "task"] = "train",
+    sources: Literal["all", "user"] = "all",
     n_eval: int = 10,
     max_size: int = 2,
     ray_address: str | None = None,
@@ -61,6 +64,12 @@ def experiment_q2(
         conditions: which conditions.
         steps: fewest finetuning gradient steps per run.
         steps_per_trajectory: a run finetunes max(STEPS, this x budget) steps.
+        replay_share: share of every finetuning batch replayed from the base policy's
+            training demonstrations (0: none).
+        layouts: where the fresh evaluation tasks put the objects: in a random training
+            layout, or where the test task has them.
+        sources: what variants are made from: the training demonstrations and the user's,
+            or the user's demonstration only.
         n_eval: fresh tasks each finetuned policy is scored on.
         max_size: largest edit the counterfactual search tries (CF H).
         ray_address: an existing Ray cluster ("auto", "ray://host:10001"); default: start one here.
@@ -80,6 +89,8 @@ def experiment_q2(
     ):
         if value < 1:
             raise UserError(f"--{name} must be at least 1, not {value}")
+    if not 0.0 <= replay_share < 1.0:
+        raise UserError(f"--replay-share is a share of a batch in [0, 1), not {replay_share}")
     plan = Plan(
         worlds=tuple(dict.fromkeys(worlds)),
         shifts=("object", "distractor") if shift == "both" else (shift,),
@@ -95,6 +106,9 @@ def experiment_q2(
             steps=steps,
             steps_per_trajectory=steps_per_trajectory,
             max_size=max_size,
+            replay_share=replay_share,
+            layouts=layouts,
+            sources=sources,
         ),
         backend=backend,
         workers=workers,

@@ -173,6 +173,12 @@ def cells(rows: Iterable[dict[str, str]]) -> dict[tuple[str, str, str, int], Cel
     return {k: summarise(v) for k, v in sorted(groups.items())}
 
 
+SOURCES = {
+    "all": "the training demonstrations and the user's",
+    "user": "the user's demonstration only",
+}
+
+
 def panels(table: dict[tuple[str, str, str, int], Cell]) -> list[tuple[str, str]]:
     """The (world, shift) pairs present, in the paper's order (object shifts first)."""
     order = {"nav2d": 0, "doorkey": 1, "tabletop": 2}
@@ -242,7 +248,8 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
         f"number in brackets. {len(rows)} runs; finetuning max({settings.steps}, "
         f"{settings.steps_per_trajectory} x budget) steps with "
         f"{settings.replay_share:.0%} of every batch replayed from the training "
-        f"demonstrations; fresh tasks in the {settings.layouts} layouts; counterfactual "
+        f"demonstrations; variants from {SOURCES[settings.sources]}; fresh tasks in the "
+        f"{settings.layouts} layouts; counterfactual "
         f"search up to {settings.max_size} changes.",
     ]
     for world, shift in panels(table):

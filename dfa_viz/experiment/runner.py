@@ -82,6 +82,9 @@ class Settings:
     """Share of every finetuning batch replayed from the base policy's training demonstrations."""
     layouts: str = "train"
     """Where the fresh evaluation tasks put the objects (World.fresh_tasks)."""
+    sources: str = "all"
+    """What variants are made from: "all" (the training demonstrations and the user's) or
+    "user" (the user's demonstration only, as in the paper)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -218,7 +221,11 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         offered=cf_concepts,
     )
     n = spec.budget - 1
-    srcs = aug.sources(prep.task, prep.demo, prep.known)
+    srcs = (
+        aug.sources(prep.task, prep.demo, prep.known)
+        if settings.sources == "all"
+        else [aug.Source(prep.task, prep.demo)]
+    )
     if choice.concept is None:
         ops = aug.random_concept_variants(world, srcs, prep.visible, n, seed=spec.seed)
     else:

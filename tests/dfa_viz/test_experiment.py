@@ -127,6 +127,10 @@ def test_cli_rejects_bad_numbers(tmp_path):
         experiment_main(["q2", "--budgets", "0", "--out", str(tmp_path)])
     with pytest.raises(UserError, match="--seeds"):
         experiment_main(["q2", "--seeds", "0", "--out", str(tmp_path)])
+    with pytest.raises(UserError, match="--replay-share"):
+        experiment_main(["q2", "--replay-share", "1", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit):
+        experiment_main(["q2", "--layouts", "anywhere", "--out", str(tmp_path)])
     with pytest.raises(SystemExit):
         experiment_main(["q2", "--world", "atlantis", "--out", str(tmp_path)])
 
