@@ -92,8 +92,9 @@ def bench(
     """Measure every speed figure on this machine and write them to benchmarks/ as Markdown.
 
     Each world's search against a naive one-candidate-at-a-time loop timed in the same process,
-    a whole `dfa run`, the tabletop's edit + render and search targets, and the web page (load,
-    slider latency, finetune round trip).
+    a whole `dfa run`, the tabletop's edit + render and search targets, per world the render
+    throughput, finetuning time, recording size and one experiment run, and the web page
+    (load, slider latency, finetune round trip).
 
     Args:
         worlds: which worlds to measure.

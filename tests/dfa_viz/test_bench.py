@@ -16,7 +16,7 @@ def test_cost_rows_name_every_figure(nav_policy, tmp_path):
     values = {what.split(" (")[0]: value for what, value, _, _ in rows}
     assert set(values) == {
         "nav2d: render throughput, one batch of 64 scenes vs one scene at a time",
-        "nav2d: finetune, 300 steps with replay, vs cloning as many steps from scratch",
+        "nav2d: finetune, 300 steps of 64 samples, half replayed",
         "nav2d: recording of one `dfa run`",
         "nav2d: one `dfa experiment q2` run",
     }
