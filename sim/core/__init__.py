@@ -5,7 +5,16 @@ from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
 from sim.core.scene import Obj, Scene
-from sim.core.task import LAYOUTS, SHIFTS, TRAIN, Reward, Task, check_layouts, check_shift
+from sim.core.task import (
+    LAYOUTS,
+    SHIFTS,
+    TRAIN,
+    Reward,
+    Task,
+    check_layouts,
+    check_shift,
+    draw_from_reward,
+)
 from sim.core.trajectory import Trajectory
 from sim.core.world import ActBatch, World
 
@@ -35,6 +44,7 @@ __all__ = [
     "apply",
     "check_layouts",
     "check_shift",
+    "draw_from_reward",
     "effective",
     "single_changes",
 ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
+from sim.core.concepts import PRESENCE, PRESENT
 from sim.core.errors import UserError
 from sim.core.scene import Scene
 
@@ -89,3 +90,15 @@ class Task:
             "scene": self.scene.to_dict(),
             "reward": self.reward.to_dict(),
         }
+
+
+def draw_from_reward(scene: Scene, reward: Reward, rng) -> Scene:
+    """`scene` with every (slot, concept) R' leaves open drawn from its allowed values, in the
+    order of `reward.allowed` (one rng.integers call each); positions are left as they are."""
+    for slot, concept, values in reward.allowed:
+        v = str(values[rng.integers(len(values))])
+        o = scene.obj(slot)
+        scene = scene.with_obj(
+            replace(o, present=v == PRESENT) if concept == PRESENCE else o.with_value(concept, v)
+        )
+    return scene

@@ -20,6 +20,7 @@ from sim.core import (
     World,
     check_layouts,
     check_shift,
+    draw_from_reward,
 )
 from sim.nav2d import render as R
 
@@ -225,15 +226,7 @@ class Nav2DWorld(World):
         layout_rng = np.random.default_rng([seed, 4])
         tasks = []
         for i in range(n):
-            scene = task.scene
-            for slot, concept, values in task.reward.allowed:
-                v = str(values[rng.integers(len(values))])
-                o = scene.obj(slot)
-                if concept == PRESENCE:
-                    o = Obj(o.slot, v == "present", o.values, o.pos)
-                else:
-                    o = o.with_value(concept, v)
-                scene = scene.with_obj(o)
+            scene = draw_from_reward(task.scene, task.reward, rng)
             g = scene.obj("goal")
             start, goal = tuple(scene.agent[:2]), g.pos
             if task.shift == "other":  # R' holds wherever the goal is

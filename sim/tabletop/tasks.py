@@ -27,6 +27,7 @@ from sim.core import (
     Trajectory,
     check_layouts,
     check_shift,
+    draw_from_reward,
 )
 from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
 
@@ -261,15 +262,7 @@ def fresh_tasks(task: Task, n: int, seed: int, layouts: str = "task") -> list[Ta
     layout_rng = np.random.default_rng([seed, 4])
     out = []
     for i in range(n):
-        scene = task.scene
-        for slot, concept, values in task.reward.allowed:
-            v = str(values[rng.integers(len(values))])
-            o = scene.obj(slot)
-            if concept == PRESENCE:
-                o = Obj(o.slot, v == PRESENT, o.values, o.pos)
-            else:
-                o = o.with_value(concept, v)
-            scene = scene.with_obj(o)
+        scene = draw_from_reward(task.scene, task.reward, rng)
         areas = list(AREAS)
         if task.shift == "other":
             order = rng.permutation(len(areas))
