@@ -45,7 +45,7 @@ def naive_search(
     return valid
 
 
-def _best_of(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
+def best_of(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
     best, out = float("inf"), None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -70,8 +70,8 @@ def bench_world(
     def batched() -> list[Candidate]:  # as the search does for small spaces: one pass
         return rollout_lockstep(world, policy, task.scene, demo, everything, epsilon=eps)
 
-    t_batched, tried = _best_of(batched, repeats)
-    t_naive, naive_valid = _best_of(
+    t_batched, tried = best_of(batched, repeats)
+    t_naive, naive_valid = best_of(
         lambda: naive_search(world, policy, task.scene, demo, everything, eps), 1
     )
     assert naive_valid == [c.valid for c in tried], "naive and batched searches disagree"

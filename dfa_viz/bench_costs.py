@@ -4,22 +4,13 @@ run of the finetuning experiment."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from pathlib import Path
 
+from dfa_viz.bench import best_of
 from policy import base_policy, failing_test_task, finetune, training_demos
 from sim import get_world
 
 Row = tuple[str, str, str, bool | None]  # (what, value, target, met)
-
-
-def _best(fn: Callable[[], object], repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def render_throughput(name: str, *, n: int = 64, repeats: int = 3) -> dict[str, float]:
@@ -27,8 +18,8 @@ def render_throughput(name: str, *, n: int = 64, repeats: int = 3) -> dict[str, 
     world = get_world(name)
     task = world.test_task("distractor_ti", 0)
     scenes = [t.scene for t in world.fresh_tasks(task, n, seed=0, layouts="train")]
-    batched = _best(lambda: world.render_batch(scenes), repeats)
-    single = _best(lambda: [world.render_batch([s]) for s in scenes], repeats)
+    batched, _ = best_of(lambda: world.render_batch(scenes), repeats)
+    single, _ = best_of(lambda: [world.render_batch([s]) for s in scenes], repeats)
     return {"n": n, "batched_fps": n / batched, "single_fps": n / single, "ratio": single / batched}
 
 

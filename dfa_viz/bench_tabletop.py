@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from dfa_viz.bench import _best_of
+from dfa_viz.bench import best_of
 from policy import Policy, base_policy, failing_test_task
 from search import SearchConfig, counterfactual_search, rollout_lockstep, singles
 from sim import get_world
@@ -83,17 +83,17 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         return rollout_lockstep(world, policy, task.scene, demo, edits, epsilon=eps)
 
     run_singles()  # warm: GL context, caches
-    singles_s, cands = _best_of(run_singles, repeats)
+    singles_s, cands = best_of(run_singles, repeats)
 
     def edit_render():
         return world.render_batch([world.apply(task.scene, e) for e in edits])
 
-    render_s, _ = _best_of(edit_render, repeats)
+    render_s, _ = best_of(edit_render, repeats)
 
     double = double_shift_task(world, seed)
     double_demo = world.demonstrate(double)
     config = SearchConfig.for_world(world)
-    pairs_s, result = _best_of(
+    pairs_s, result = best_of(
         lambda: counterfactual_search(world, policy, double.scene, double_demo, config=config),
         repeats,
     )

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dfa_viz.experiment.conditions import UserConcept, stable_int
+from dfa_viz.experiment.conditions import UserConcept, in_scene, stable_int
 from policy.augment import transform
 from sim.core import ABSENT, PRESENCE, PRESENT, Scene, Task, Trajectory, World
 
@@ -100,18 +100,21 @@ def variant_stream(
     *,
     informed: bool,
     rng: np.random.Generator,
+    seen: set[Scene] | None = None,
 ) -> Iterator[tuple[Op, ...]]:
     """Distinct variants (tuples of ops) of the task's scene over `concept`, in a seeded order.
 
-    Variants equal to the task's own scene, equal to an earlier variant, or stacking two
-    objects on one place are skipped. Ends when the options are exhausted.
+    Variants equal to the task's own scene, equal to a scene in `seen` (an earlier variant's,
+    of this stream or of any stream sharing the set), or stacking two objects on one place
+    are skipped; each variant yielded is added to `seen`. Ends when the options run out.
     """
     options = member_options(world, task, demo, concept, informed=informed)
     sizes = [len(o) for o in options]
     total = math.prod(sizes)
     if total == 0:
         return
-    seen = {task.scene}
+    seen = set() if seen is None else seen
+    seen.add(task.scene)
 
     def decode(index: int) -> tuple[Op, ...]:
         ops = []
@@ -172,12 +175,6 @@ def sources(task: Task, demo: Trajectory, known: Sequence[Trajectory]) -> list[S
     ]
 
 
-def _in_scene(concept: UserConcept, scene: Scene) -> UserConcept | None:
-    """The part of a user concept a scene shows: presence, and the looks of present objects."""
-    members = tuple((s, c) for s, c in concept.members if c == PRESENCE or scene.obj(s).present)
-    return UserConcept(concept.name, members) if members else None
-
-
 def variants_from_sources(
     world: World,
     srcs: Sequence[Source],
@@ -193,32 +190,24 @@ def variants_from_sources(
     seeded stream). Fewer when the concepts run out: a concept found in no source is dropped,
     and the walk ends once all `n_concepts` concepts have been dropped."""
     streams: dict[tuple[int, str], Iterator[tuple[Op, ...]]] = {}
+    # two sources can share a layout (the user's scene may be a training scene with one
+    # concept changed), so all streams share one seen-set: a variant is new only if no
+    # source and no earlier variant of any stream has its scene
+    seen = {src.task.scene for src in srcs}
 
     def stream(k: int, concept: UserConcept) -> Iterator[tuple[Op, ...]]:
         key = (k, concept.name)
         if key not in streams:
-            part = _in_scene(concept, srcs[k].task.scene)
+            part = in_scene(concept, srcs[k].task.scene)
             rng = concept_rng(world.name, srcs[k].task.shift, seed, concept.name, informed, k)
             streams[key] = (
                 iter(())
                 if part is None
                 else variant_stream(
-                    world, srcs[k].task, srcs[k].demo, part, informed=informed, rng=rng
+                    world, srcs[k].task, srcs[k].demo, part, informed=informed, rng=rng, seen=seen
                 )
             )
         return streams[key]
-
-    # two sources can share a layout (the user's scene may be a training scene with one
-    # concept changed), so a variant is new only if no source and no earlier variant has it
-    seen = {src.task.scene for src in srcs}
-
-    def fresh(k: int, concept: UserConcept) -> tuple[Op, ...] | None:
-        for ops in stream(k, concept):
-            scene = transform(srcs[k].task.scene, ops)
-            if scene not in seen:
-                seen.add(scene)
-                return ops
-        return None
 
     out: list[tuple[int, tuple[Op, ...]]] = []
     dropped: set[str] = set()
@@ -230,7 +219,7 @@ def variants_from_sources(
             continue
         for j in range(len(srcs)):
             k = (turn + j) % len(srcs)
-            ops = fresh(k, concept)
+            ops = next(stream(k, concept), None)
             if ops is not None:
                 out.append((k, ops))
                 turn = k + 1

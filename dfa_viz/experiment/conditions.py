@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core import PRESENCE, Task, World
+from sim.core import PRESENCE, Scene, Task, World
 
 CONDITIONS = ("nh_random", "baseline_h", "cf_h", "oracle")
 CONDITION_NAMES = {
@@ -113,12 +113,14 @@ def visible_concepts(world: World, task: Task) -> tuple[UserConcept, ...]:
     """The concepts a person can point at in the test scene: the looks of objects that are
     there, and the presence of any optional object (adding one is always visible). The looks
     of an object that is not in the scene are not something anyone would name."""
-    out = []
-    for uc in user_concepts(world):
-        members = tuple((s, c) for s, c in uc.members if c == PRESENCE or task.scene.obj(s).present)
-        if members:
-            out.append(UserConcept(uc.name, members))
-    return tuple(out)
+    shown = (in_scene(uc, task.scene) for uc in user_concepts(world))
+    return tuple(uc for uc in shown if uc is not None)
+
+
+def in_scene(concept: UserConcept, scene: Scene) -> UserConcept | None:
+    """The part of a user concept a scene shows: presence, and the looks of present objects."""
+    members = tuple((s, c) for s, c in concept.members if c == PRESENCE or scene.obj(s).present)
+    return UserConcept(concept.name, members) if members else None
 
 
 def concept_named(concepts: tuple[UserConcept, ...], name: str) -> UserConcept:
