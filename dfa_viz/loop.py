@@ -11,7 +11,7 @@ from policy import Policy, augment, evaluate, finetune
 from policy.evaluate import N_EVAL
 from policy.train import FINETUNE, TrainConfig
 from search import Candidate, SearchConfig, SearchResult, counterfactual_search
-from sim.core import Feedback, Task, Trajectory, World
+from sim.core import EMPTY, Feedback, Task, Trajectory, World, require_success
 
 
 class LoopObserver(Protocol):
@@ -90,6 +90,7 @@ def run_loop(
 
     # Diagnosis: the user's demonstration, then the smallest edit that explains the failure.
     demo = user.demonstrate(task)
+    require_success(task, demo)
     report.demo = demo
     if observer:
         observer.on_rollout("demonstration", demo)
@@ -112,8 +113,8 @@ def run_loop(
 
     # Feedback: each edited concept marked TI or TR; augment over the TI ones.
     finetune_set = [demo]
+    report.feedback = user.label(task, result.best.edit if result.best is not None else EMPTY)
     if result.best is not None:
-        report.feedback = user.label(task, result.best.edit)
         augmented = augment(world, task, demo, report.feedback, seed=seed)
         report.n_augmented = len(augmented)
         finetune_set += augmented

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import uuid
+from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from search import Candidate, SearchResult
-from sim.core import Edit, Feedback, Task, Trajectory, World
+from sim.core import Edit, Feedback, Task, Trajectory, World, files
 
 APP_ID = "dfa"
 ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
@@ -22,6 +23,77 @@ DETAIL_BEST = 50  # larger ones: every candidate as a row, traces for the valid 
 def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
     """The same run always gets the same recording id (reproducible files)."""
     return uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/{world}/{shift}/{seed}")
+
+
+def new_stream(rid: uuid.UUID, *, app_id: str = APP_ID) -> rr.RecordingStream:
+    """A stream whose file holds the same content for the same calls, on any machine.
+
+    No log time or tick columns; rows are cut into chunks by size and row count, never by a
+    wall-clock tick, so the chunks are the same too. (Rerun's own row and chunk ids are
+    time-based: two files of one run differ in those bytes only.)
+    """
+    # Rerun keeps every stream dropped so far (its two threads and every row it logged) until
+    # this sweep, which rr.init also does; a server writes a file per action, so sweep here.
+    rr.bindings.flush_and_cleanup_orphaned_recordings()
+    rec = rr.RecordingStream(
+        app_id,
+        recording_id=rid,
+        send_properties=False,
+        batcher_config=rr.ChunkBatcherConfig(
+            flush_tick=timedelta(days=1), flush_num_bytes=1 << 20, flush_num_rows=4096
+        ),
+    )
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    return rec
+
+
+class RrdFile:
+    """An .rrd written atomically: logged to a temporary file beside `path`, moved into place
+    by `close()`; `close(keep=False)` (or an exception inside `with`) leaves `path` as it was."""
+
+    def __init__(self, path: str | Path, rid: uuid.UUID, *, app_id: str = APP_ID) -> None:
+        self.path = Path(path)
+        self.tmp = files.temp_beside(self.path)
+        self.rec = new_stream(rid, app_id=app_id)
+        self.rec.save(self.tmp)
+
+    def close(self, *, keep: bool = True) -> Path:
+        self.rec.flush()
+        self.rec.disconnect()
+        if keep:
+            files.commit(self.tmp, self.path)
+        files.discard(self.tmp)
+        return self.path
+
+    def __enter__(self) -> rr.RecordingStream:
+        return self.rec
+
+    def __exit__(self, kind, value, tb) -> None:
+        self.close(keep=kind is None)
+
+
+def send_blueprint(rec: rr.RecordingStream, bp: rrb.Blueprint) -> None:
+    """`rec.send_blueprint(bp)` (active and default), and the blueprint's stream closed after.
+
+    Rerun 0.41's own send_blueprint logs the blueprint to a stream of its own that is never
+    released (two threads and half a megabyte per call); disconnecting that stream frees it.
+    """
+    stream = rr.RecordingStream._from_native(
+        rr.bindings.new_blueprint(
+            application_id=rec.get_application_id(),
+            make_default=False,
+            make_thread_default=False,
+            default_enabled=True,
+        )
+    )
+    try:
+        stream.set_time("blueprint", sequence=0)
+        bp.to_blueprint()._log_to_stream(stream)
+        storage = stream.memory_recording().storage
+        rr.bindings.send_blueprint(storage, True, True, recording=rec.to_native())
+    finally:
+        stream.disconnect()
 
 
 def blueprint(world: World) -> rrb.Blueprint:
@@ -67,17 +139,10 @@ class Recorder:
 
     def __init__(self, path: str | Path, world: World, task: Task) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self.world, self.task = world, task
-        self.rec = rr.RecordingStream(
-            APP_ID,
-            recording_id=recording_id(world.name, task.shift, task.seed),
-            send_properties=False,
-        )
-        self.rec.set_log_time_enabled(False)
-        self.rec.set_log_tick_enabled(False)
-        self.rec.save(self.path)
-        self.rec.send_blueprint(blueprint(world))
+        self.file = RrdFile(self.path, recording_id(world.name, task.shift, task.seed))
+        self.rec = self.file.rec
+        send_blueprint(self.rec, blueprint(world))
         self.rec.send_property(
             "task",
             rr.AnyValues(
@@ -243,9 +308,16 @@ class Recorder:
         self.rec.log("evaluation/success", rr.BarChart(np.array([before, after])), static=True)
         self.rec.log("evaluation/values", rr.AnyValues(before=before, after=after), static=True)
 
-    def close(self) -> None:
-        if self._candidates:  # a search cut short still leaves what it tried
+    def close(self, *, keep: bool = True) -> None:
+        """Finish the file and move it into place; `keep=False` (a run that failed) discards
+        it and leaves an earlier recording at `path` untouched."""
+        if keep and self._candidates:
             self.rec.reset_time()
             self._log_candidates()
-        self.rec.flush()
-        self.rec.disconnect()
+        self.file.close(keep=keep)
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, kind, value, tb) -> None:
+        self.close(keep=kind is None)

@@ -7,7 +7,7 @@ from typing import Protocol
 
 import numpy as np
 
-from sim.core import PRESENCE, Edit, Feedback, Label, Task, Trajectory, World
+from sim.core import PRESENCE, Edit, Feedback, Label, Task, Trajectory, UserError, World
 
 
 class User(Protocol):
@@ -22,7 +22,8 @@ class User(Protocol):
         ...
 
     def label(self, task: Task, edit: Edit) -> Feedback:
-        """Mark each edited concept TI or TR, with the acceptable instantiations for TI."""
+        """Mark each edited concept TI or TR, with the acceptable instantiations for TI (the
+        edit is empty when the search found no counterfactual)."""
         ...
 
 
@@ -52,6 +53,14 @@ class SimulatedUser:
         return self.demo if self.demo is not None else self.world.demonstrate(task)
 
     def label(self, task: Task, edit: Edit) -> Feedback:
+        changed = {(ch.slot, ch.concept) for ch in edit.changes}
+        stray = [f"{s}.{c}" for s, c in self.overrides if (s, c) not in changed]
+        if stray:
+            touched = ", ".join(f"{s}.{c}" for s, c in sorted(changed)) or "nothing"
+            raise UserError(
+                f"--label {', '.join(stray)}: the counterfactual edit changes {touched}; "
+                "a label answers for a concept the edit changes"
+            )
         labels = []
         for ch in edit.ordered:
             relevant = task.reward.is_relevant(ch.slot, ch.concept)

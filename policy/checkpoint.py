@@ -1,29 +1,27 @@
-"""Checkpoints: `model.safetensors` + `config.json`, written atomically; nothing is unpickled."""
+"""Checkpoints: `model.safetensors` + `config.json`, written atomically; nothing is unpickled.
+
+A checkpoint is checked before anything is built from it: config.json must be UTF-8 JSON whose
+architecture is in range and fits the world (observation shape, action size and kind), and
+every tensor must have the architecture's shape and finite values.
+"""
 
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
+from typing import Any
 
 import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
 from policy.model import ImagePolicy, Policy, PolicyConfig
-from sim.core import UserError
+from sim.core import UserError, World, files
 
-
-def _atomic_write(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+# what a checkpoint's architecture may ask for: (field, smallest, largest) for each integer
+BOUNDS = {"channels": (1, 256), "kernels": (1, 16), "strides": (1, 8), "hidden": (1, 4096)}
+MAX_SIDE_PX = 1024  # observations up to 1024 x 1024 pixels
+MAX_ACTIONS = 256
 
 
 def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None) -> Path:
@@ -31,34 +29,109 @@ def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().contiguous() for k, v in policy.net.state_dict().items()}
-    _atomic_write(folder / "model.safetensors", lambda p: save_file(state, p))
+    with files.atomic_path(folder / "model.safetensors") as tmp:
+        save_file(state, str(tmp))
     doc = {"policy": policy.config.to_dict(), "meta": meta or {}}
-    _atomic_write(folder / "config.json", lambda p: Path(p).write_text(json.dumps(doc, indent=2)))
+    files.write_text(folder / "config.json", json.dumps(doc, indent=2) + "\n")
     return folder
 
 
-def load_policy(folder: str | Path, *, world: str | None = None) -> Policy:
-    """Load a checkpoint folder; a wrong world, shape or file says so in one line."""
-    folder = Path(folder)
-    cfg_path, weights = folder / "config.json", folder / "model.safetensors"
-    for p in (cfg_path, weights):
-        if not p.is_file():
-            raise UserError(
-                f"checkpoint {folder}: missing {p.name}; expected model.safetensors + config.json"
-            )
+def read_config(folder: str | Path) -> dict[str, Any]:
+    """The parsed config.json of a checkpoint folder (UserError when it is missing or not a
+    JSON object)."""
+    path = Path(folder) / "config.json"
     try:
-        raw = json.loads(cfg_path.read_text())["policy"]
-        raw = {k: tuple(v) if isinstance(v, list) else v for k, v in raw.items()}
-        config = PolicyConfig(**raw)
-    except (json.JSONDecodeError, KeyError, TypeError) as e:
-        raise UserError(f"checkpoint {cfg_path}: malformed config ({e})") from None
-    if world is not None and config.world != world:
-        raise UserError(f"checkpoint {folder} is for world {config.world!r}, not {world!r}")
-    net = ImagePolicy(config)
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise UserError(
+            f"checkpoint {folder}: missing config.json; expected model.safetensors + config.json"
+        ) from None
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        why = "not UTF-8 text" if isinstance(e, UnicodeDecodeError) else "not valid JSON"
+        raise UserError(f"checkpoint {path}: {why}; expected a JSON object") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("policy"), dict):
+        raise UserError(
+            f'checkpoint {path}: expected a JSON object with a "policy" object '
+            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden)"
+        )
+    return doc
+
+
+def _ints(path: Path, name: str, value: Any, n: int | None, lo: int, hi: int) -> tuple[int, ...]:
+    """`value` as n integers in [lo, hi] (one integer when n is None), else a UserError."""
+    items = [value] if n is None else value
+    ok = (n is None or (isinstance(value, list) and len(value) == n)) and all(
+        isinstance(v, int) and not isinstance(v, bool) and lo <= v <= hi for v in items
+    )
+    if not ok:
+        what = "an integer" if n is None else f"a list of {n} integers"
+        raise UserError(
+            f"checkpoint {path}: {name} must be {what} from {lo} to {hi}, not {json.dumps(value)}"
+        )
+    return tuple(items)
+
+
+def config_for(folder: str | Path, world: World) -> PolicyConfig:
+    """The architecture in a checkpoint's config.json, checked against `world`."""
+    path = Path(folder) / "config.json"
+    raw = read_config(folder)["policy"]
+    defaults = PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+    if raw.get("world") != world.name:
+        raise UserError(
+            f"checkpoint {folder} is for world {json.dumps(raw.get('world'))}, not {world.name!r}"
+        )
+    obs = _ints(path, "obs_shape", raw.get("obs_shape"), 3, 1, MAX_SIDE_PX)
+    if obs != world.obs_shape:
+        raise UserError(
+            f"checkpoint {path}: obs_shape {list(obs)} does not fit {world.name}, whose "
+            f"observations are {list(world.obs_shape)}"
+        )
+    action_dim = _ints(path, "action_dim", raw.get("action_dim"), None, 1, MAX_ACTIONS)[0]
+    discrete = raw.get("discrete")
+    if discrete is not world.discrete or action_dim != world.action_dim:
+        kind = f"{world.action_dim} discrete actions" if world.discrete else "continuous"
+        raise UserError(
+            f"checkpoint {path}: discrete={json.dumps(discrete)}, action_dim={action_dim} does "
+            f"not fit {world.name} ({kind}, action_dim {world.action_dim})"
+        )
+    arch: dict[str, Any] = {}
+    for name, (lo, hi) in BOUNDS.items():
+        value = raw.get(name, getattr(defaults, name))
+        if isinstance(value, tuple):
+            value = list(value)
+        arch[name] = _ints(path, name, value, None if name == "hidden" else 3, lo, hi)
+    arch["hidden"] = arch["hidden"][0]
+    extra = sorted(set(raw) - {"world", "obs_shape", "action_dim", "discrete", *BOUNDS})
+    if extra:
+        raise UserError(f"checkpoint {path}: unknown fields {extra}")
+    side = min(obs[:2])
+    for k, s in zip(arch["kernels"], arch["strides"], strict=True):
+        side = (side - k) // s + 1
+        if side < 1:
+            raise UserError(
+                f"checkpoint {path}: kernels {list(arch['kernels'])} and strides "
+                f"{list(arch['strides'])} do not fit {obs[0]}x{obs[1]} observations"
+            )
+    return PolicyConfig(world.name, obs, action_dim, world.discrete, **arch)
+
+
+def load_policy(folder: str | Path, *, world: World) -> Policy:
+    """Load a checkpoint folder for `world`; anything wrong with it is one UserError line."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"checkpoint {folder}: not a folder; expected model.safetensors + config")
+    weights = folder / "model.safetensors"
+    if not weights.is_file():
+        raise UserError(
+            f"checkpoint {folder}: missing model.safetensors; expected model.safetensors + "
+            "config.json"
+        )
+    config = config_for(folder, world)
     try:
         state = load_file(weights)
     except (SafetensorError, OSError) as e:
         raise UserError(f"checkpoint {weights}: not a readable safetensors file ({e})") from None
+    net = ImagePolicy(config)
     expected = net.state_dict()
     if set(state) != set(expected):
         raise UserError(
@@ -71,6 +144,9 @@ def load_policy(folder: str | Path, *, world: str | None = None) -> Policy:
                 f"checkpoint {weights}: tensor {name} has shape {tuple(t.shape)}, "
                 f"expected {tuple(expected[name].shape)} for obs {config.obs_shape}"
             )
+        if not torch.isfinite(t).all():
+            bad = int((~torch.isfinite(t)).sum())
+            raise UserError(f"checkpoint {weights}: tensor {name} has {bad} non-finite values")
     with torch.no_grad():
         net.load_state_dict(state)
     return Policy(net)

@@ -9,6 +9,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from sim.core import UserError
+
 
 @dataclass(frozen=True)
 class PolicyConfig:
@@ -75,12 +77,23 @@ class Policy:
 
     @torch.inference_mode()
     def outputs(self, obs: np.ndarray) -> np.ndarray:
-        """Raw head outputs float32 (B, A): actions, or logits for discrete worlds."""
+        """Raw head outputs float32 (B, A): actions, or logits for discrete worlds.
+
+        Raises UserError when any output is not a finite number: nothing downstream (a
+        rollout, the search, a success rate) may be computed from one.
+        """
         x = torch.from_numpy(np.ascontiguousarray(obs))
         if len(x) <= self.chunk:
-            return self.net(x).numpy()
-        chunks = [self.net(x[i : i + self.chunk]) for i in range(0, len(x), self.chunk)]
-        return torch.cat(chunks).numpy()
+            out = self.net(x).numpy()
+        else:
+            chunks = [self.net(x[i : i + self.chunk]) for i in range(0, len(x), self.chunk)]
+            out = torch.cat(chunks).numpy()
+        if not np.isfinite(out).all():
+            raise UserError(
+                "the policy's outputs are not finite numbers (NaN or inf): it cannot be rolled "
+                "out, searched or scored; check its weights"
+            )
+        return out
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """uint8 (B, H, W, 3) -> float32 (B, A), or int64 (B,) argmax for discrete worlds."""

@@ -2,20 +2,16 @@
 
 from __future__ import annotations
 
-import hashlib
-import json
-import os
+import math
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import nn
 
-from policy.checkpoint import load_policy, save_policy
 from policy.model import ImagePolicy, Policy, PolicyConfig
-from sim.core import Trajectory, World
+from sim.core import Task, Trajectory, UserError, World
 
 N_TRAIN_DEMOS = 10
 
@@ -68,6 +64,8 @@ def behaviour_clone(
     torch.manual_seed(config.seed)
     gen = np.random.default_rng(config.seed)
     obs, act = transitions(world, demos)  # (N, H, W, 3), (N, A) | (N,)
+    if not np.isfinite(act).all():
+        raise UserError("cannot train on demonstrations whose actions are not finite numbers")
     n_new = len(obs)
     n_replay = round(config.batch_size * replay_share) if replay else 0
     if n_replay:
@@ -105,10 +103,16 @@ def behaviour_clone(
         else:
             idx = torch.from_numpy(gen.integers(0, n_new, size=min(config.batch_size, n_new)))
         loss = loss_fn(net(x_all[idx]), y_all[idx])
+        value = loss.item()
+        if not math.isfinite(value):
+            raise UserError(
+                f"training stopped at step {step}: the loss is {value}, not a finite number "
+                "(the policy or its demonstrations hold non-finite values)"
+            )
         opt.zero_grad()
         loss.backward()
         opt.step()
-        losses.append(loss.item())
+        losses.append(value)
         if on_loss is not None:
             on_loss(step, losses[-1])
     return Policy(net.eval()), losses
@@ -139,44 +143,11 @@ def finetune(
     )
 
 
+def training_tasks(world: World, seed: int = 0) -> list[Task]:
+    """The training tasks a base policy is cloned on (N_TRAIN_DEMOS of them)."""
+    return [world.train_task(seed=seed * N_TRAIN_DEMOS + i) for i in range(N_TRAIN_DEMOS)]
+
+
 def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
     """The expert demonstrations of the training tasks a base policy is cloned on."""
-    return [
-        world.demonstrate(world.train_task(seed=seed * N_TRAIN_DEMOS + i))
-        for i in range(N_TRAIN_DEMOS)
-    ]
-
-
-def cache_dir() -> Path:
-    """Where base policies are cached: $DFA_CACHE, else ~/.cache/dfa."""
-    return Path(os.environ.get("DFA_CACHE", Path.home() / ".cache" / "dfa"))
-
-
-def base_policy(
-    world: World,
-    *,
-    seed: int = 0,
-    config: TrainConfig = BASE,
-    retrain: bool = False,
-    on_loss: LossCallback | None = None,
-) -> Policy:
-    """The base policy of `world`: cloned on 10 expert demonstrations of the training task.
-
-    Cached under cache_dir()/policies/<world>-<hash of the training recipe>/.
-    """
-    demos = training_demos(world, seed)
-    recipe = {
-        "world": world.name,
-        "seed": seed,
-        "train": asdict(config),
-        "demos": hashlib.sha256(
-            b"".join(d.observations.tobytes() + d.actions.tobytes() for d in demos)
-        ).hexdigest(),
-    }
-    key = hashlib.sha256(json.dumps(recipe, sort_keys=True).encode()).hexdigest()[:12]
-    folder = cache_dir() / "policies" / f"{world.name}-{key}"
-    if not retrain and (folder / "model.safetensors").is_file():
-        return load_policy(folder, world=world.name)
-    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
-    save_policy(policy, folder, meta={**recipe, "final_loss": losses[-1]})
-    return policy
+    return [world.demonstrate(t) for t in training_tasks(world, seed)]

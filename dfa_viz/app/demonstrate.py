@@ -40,6 +40,7 @@ class DemoInput:
         self.world, self.task = world, task
         self.first = world.render(task.scene)  # (H, W, 3) uint8
         self.scale = frames.scale_for(world.obs_shape, frames.CANVAS_PX)
+        self._built: tuple[tuple, Trajectory] | None = None  # (what was given, its trajectory)
 
     def click(self, u: float, v: float) -> None:
         raise UserError(f"{self.world.name} demonstrations are not given by clicking")
@@ -51,13 +52,41 @@ class DemoInput:
 
     def clear(self) -> None: ...
 
-    def ready(self) -> bool:
+    def given(self) -> bool:
+        """True once the user has demonstrated something (a click, a key)."""
         return False
+
+    def ready(self) -> bool:
+        """True when the demonstration so far does what the task asks (only then may the
+        search use it)."""
+        return self.given() and self.trajectory().success
+
+    def problem(self) -> str:
+        """Why the demonstration cannot be used yet, in words ("" when it can, or before
+        anything was given)."""
+        if not self.given() or self.ready():
+            return ""
+        return (
+            f'This does not do what the task asks yet ("{self.task.reward.instruction}"); '
+            "adjust it, or ask the expert."
+        )
 
     def summary(self) -> str:
         return ""
 
     def trajectory(self) -> Trajectory:
+        """The demonstration given so far, stepped through the world (built once for each
+        state of what was given)."""
+        key = self._given_key()
+        if self._built is None or self._built[0] != key:
+            self._built = (key, self._make())
+        return self._built[1]
+
+    def _given_key(self) -> tuple:
+        """A value that changes whenever what the user gave changes."""
+        return ()
+
+    def _make(self) -> Trajectory:
         raise UserError("nothing demonstrated yet")
 
     def canvas(self) -> np.ndarray:
@@ -65,13 +94,7 @@ class DemoInput:
         return frames.upscale(self.first, self.scale)
 
     def _rollout(self, actions: list[np.ndarray]) -> Trajectory:
-        scenes = [self.task.scene]
-        for a in actions:
-            scenes.append(self.world.step_batch([scenes[-1]], np.asarray(a)[None])[0])
-        obs = self.world.render_batch(scenes)  # (T+1, H, W, 3)
-        return Trajectory(
-            tuple(scenes), obs, np.stack(actions), self.world.success(self.task, scenes)
-        )
+        return self.world.replay(self.task, np.stack(actions))
 
 
 class WaypointDemo(DemoInput):
@@ -105,13 +128,16 @@ class WaypointDemo(DemoInput):
     def clear(self) -> None:
         self.points.clear()
 
-    def ready(self) -> bool:
+    def given(self) -> bool:
         return bool(self.points)
+
+    def _given_key(self) -> tuple:
+        return tuple(self.points)
 
     def summary(self) -> str:
         return ", ".join(f"({x:.1f}, {y:.1f})" for x, y in self.points)
 
-    def trajectory(self) -> Trajectory:
+    def _make(self) -> Trajectory:
         if not self.points:
             raise UserError("click at least one waypoint first")
         start = np.array(self.task.scene.agent[:2])
@@ -131,10 +157,7 @@ class WaypointDemo(DemoInput):
             a = np.clip(targets[t] - np.array(scenes[-1].agent[:2]), -1, 1).astype(np.float32)
             actions.append(a)
             scenes.append(self.world.step_batch([scenes[-1]], a[None])[0])
-        obs = self.world.render_batch(scenes)  # (T+1, H, W, 3)
-        return Trajectory(
-            tuple(scenes), obs, np.stack(actions), self.world.success(self.task, scenes)
-        )
+        return self._rollout(actions)
 
     def canvas(self) -> np.ndarray:
         image = super().canvas()
@@ -185,8 +208,11 @@ class KeyDemo(DemoInput):
         self.actions.clear()
         del self.scenes[1:]
 
-    def ready(self) -> bool:
+    def given(self) -> bool:
         return bool(self.actions)
+
+    def _given_key(self) -> tuple:
+        return tuple(self.actions)
 
     def summary(self) -> str:
         names = {k.action: k.label for k in self.keys}
@@ -195,7 +221,7 @@ class KeyDemo(DemoInput):
             f"{len(self.actions)} steps: " + ", ".join(names[a] for a in self.actions[-8:]) + done
         )
 
-    def trajectory(self) -> Trajectory:
+    def _make(self) -> Trajectory:
         if not self.actions:
             raise UserError("take at least one step first")
         actions = self.actions + [self.fill] * (self.world.horizon - len(self.actions))
@@ -231,8 +257,11 @@ class PickPlaceDemo(DemoInput):
     def clear(self) -> None:
         self.points.clear()
 
-    def ready(self) -> bool:
+    def given(self) -> bool:
         return len(self.points) == 2
+
+    def _given_key(self) -> tuple:
+        return tuple(self.points)
 
     def summary(self) -> str:
         names = ("pick", "place")
@@ -240,7 +269,7 @@ class PickPlaceDemo(DemoInput):
             f"{n} ({x:.2f}, {y:.2f}) m" for n, (x, y) in zip(names, self.points, strict=False)
         )
 
-    def trajectory(self) -> Trajectory:
+    def _make(self) -> Trajectory:
         if len(self.points) != 2:
             raise UserError("click the pick point and then the place point first")
         (px, py), (qx, qy) = self.points

@@ -26,9 +26,11 @@ def apply_event(state: LoopState, ev: dict, computed=None) -> None:
         state.world_name = world.name
         state.run = Run(world, ev["shift"], ev["seed"], task, rollout)
         state.demo_input = None
-        # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session it belongs to
+        # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session and the line of
+        # this task in its log: loading another task (or this one again) keeps this recording
         state.recording = state.out / (
-            f"{world.name}-{ev['shift']}-seed{ev['seed']}-{state.session.folder.name}.rrd"
+            f"{world.name}-{ev['shift']}-seed{ev['seed']}-{state.session.folder.name}"
+            f"-task{ev['_line']}.rrd"
         )
         state._recorded = -1
     elif kind == "judgement":

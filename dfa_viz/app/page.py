@@ -177,7 +177,10 @@ class Page:
             b.disabled = busy or stage != "judge"
         self.demo_folder.visible = run is not None and stage == "demonstrate"
         self.demo_hint.content = view.demo_hint
-        self.demo_summary.content = f"*{view.demo_summary}*" if view.demo_summary else ""
+        summary = f"*{view.demo_summary}*" if view.demo_summary else ""
+        if view.demo_problem:
+            summary += f"\n\n⚠ {view.demo_problem}"
+        self.demo_summary.content = summary
         clicks_or_keys = view.demo_kind in ("clicks", "keys")
         for b in (self.use_demo, self.undo, self.clear):
             b.visible = clicks_or_keys

@@ -78,6 +78,8 @@ class View:
     demo_hint: str
     demo_summary: str
     demo_ready: bool
+    demo_problem: str
+    """Why the demonstration given so far cannot be used ("" when it can)."""
     recording: Path | None
     session: Path
 

@@ -27,7 +27,7 @@ from dfa_viz.app.events import apply_event
 from dfa_viz.app.run import Job, Run, View, need
 from dfa_viz.app.sessions import Session, SessionError
 from dfa_viz.app.work import Policies
-from sim.core import UserError
+from sim.core import UserError, require_success
 
 Listener = Callable[[set[str]], None]
 LOSS_NOTIFY_S = 0.2  # at most this often while finetuning
@@ -187,6 +187,7 @@ class LoopState:
                 d.hint if d else "",
                 d.summary() if d else "",
                 d.ready() if d else False,
+                d.problem() if d else "",
                 self.recording,
                 self.session.folder,
             )
@@ -274,8 +275,10 @@ class LoopState:
         with self._lock:
             run = need(self.run, "demonstrate")
             source = "expert" if expert else (self.demo_input.kind if self.demo_input else "")
-            if not expert and (self.demo_input is None or not self.demo_input.ready()):
+            if not expert and (self.demo_input is None or not self.demo_input.given()):
                 raise UserError("demonstrate first (or ask the expert)")
+            if not expert and not self.demo_input.ready():
+                raise UserError(self.demo_input.problem())
             make = (
                 (lambda: run.world.demonstrate(run.task)) if expert else self.demo_input.trajectory
             )
@@ -283,6 +286,7 @@ class LoopState:
         def job() -> None:
             self._progress(0.0, "saving the demonstration")
             demo = make()
+            require_success(run.task, demo, source=f"the {source} demonstration")
             name = self.session.save_trajectory(demo, "demo")
             self._commit("demonstration", demo, file=name, source=source)
             self._notify({"stage"})

@@ -29,7 +29,17 @@ from policy.evaluate import N_EVAL
 from policy.train import FINETUNE, TrainConfig
 from search import Candidate, SearchConfig, SearchResult, counterfactual_search
 from sim import get_world
-from sim.core import Edit, Feedback, Label, Task, Trajectory, UserError, World, check_shift
+from sim.core import (
+    Edit,
+    Feedback,
+    Label,
+    Task,
+    Trajectory,
+    UserError,
+    World,
+    check_seed,
+    check_shift,
+)
 
 MAX_TIES = 12  # counterfactual rollouts prepared for selection (the search may return more)
 
@@ -52,8 +62,7 @@ def pick_task(world_name: str, shift: str, seed: int, policies: Policies):
     """The `dfa run` task for (world, shift, seed): the first failing one in its stream."""
     world = get_world(world_name)
     check_shift(shift)
-    if seed < 0:
-        raise UserError(f"seed must be a non-negative integer, not {seed}")
+    check_seed(seed)
     policy = policies.get(world)
     task, rollout = failing_test_task(world, policy, shift, seed)
     return world, task, rollout
@@ -214,8 +223,7 @@ def write_recording(
 ) -> Path:
     """Write the task's whole story to one .rrd through the loop's Recorder (observer calls in
     the loop's order)."""
-    rec = Recorder(path, world, task)
-    try:
+    with Recorder(path, world, task) as rec:  # replaces the file only once it is whole
         rec.on_rollout("failed", rollout)
         if demo is not None:
             rec.on_rollout("demonstration", demo)
@@ -231,8 +239,6 @@ def write_recording(
                 rec.on_loss(step, loss)
             rec.on_evaluation(adaptation.success_before, adaptation.success_after)
             rec.on_rollout("finetuned", adaptation.rollout)
-    finally:
-        rec.close()
     return path
 
 

@@ -20,6 +20,8 @@ from dfa_viz.experiment.conditions import (
     paper_value,
 )
 from dfa_viz.experiment.results import Cell, cells, panels
+from dfa_viz.recording import RrdFile
+from sim.core import files
 
 COLOURS = {  # RGB 0..255
     "nh_random": (127, 127, 127),
@@ -68,9 +70,8 @@ def _save(fig, path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     FigureCanvasAgg(fig)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120, bbox_inches="tight", metadata={"Software": None})
-    tmp.replace(path)
+    with files.atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight", metadata={"Software": None})
 
 
 def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
@@ -102,20 +103,19 @@ def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
 def write_rrd(out: Path, rows: Sequence[dict[str, str]]) -> Path:
     """curves.rrd: per world/shift/condition the mean, the CI bounds and the paper's curve on a
     `budget` sequence timeline; one time-series view per world and shift."""
-    import rerun as rr
-    import rerun.blueprint as rrb
 
     table = cells(rows)
     path = Path(out) / "curves.rrd"
-    tmp = path.with_name(f".{path.name}.tmp")
-    rec = rr.RecordingStream(
-        APP_ID,
-        recording_id=uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/experiment/q2/{Path(out).name}"),
-        send_properties=False,
-    )
-    rec.set_log_time_enabled(False)
-    rec.set_log_tick_enabled(False)
-    rec.save(tmp)
+    rid = uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/experiment/q2/{Path(out).name}")
+    with RrdFile(path, rid, app_id=APP_ID) as rec:
+        _log_curves(rec, table)
+    return path
+
+
+def _log_curves(rec, table) -> None:
+    import rerun as rr
+    import rerun.blueprint as rrb
+
     pairs = panels(table)
     rec.send_blueprint(
         rrb.Blueprint(
@@ -168,7 +168,3 @@ def write_rrd(out: Path, rows: Sequence[dict[str, str]]) -> Path:
             paper = [paper_value(world, shift, c, b) for b in PAPER_BUDGETS]
             faded = tuple(int(v * 0.5 + 127) for v in colour)
             send(f"{base}/paper", PAPER_BUDGETS, paper, f"{name} (paper)", faded, 1.0)
-    rec.flush()
-    rec.disconnect()
-    tmp.replace(path)
-    return path

@@ -20,7 +20,6 @@ import io
 import json
 import math
 import os
-import tempfile
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,12 +27,10 @@ from pathlib import Path
 
 from dfa_viz.experiment.conditions import CONDITION_NAMES, CONDITIONS, paper_value
 from dfa_viz.experiment.runner import COLUMNS, KEY, Settings
-from sim.core import UserError
+from sim.core import UserError, files
 
 TIMING_COLUMNS = (*KEY, "duration_s", "cpu_s", "host")
 Key = tuple[str, str, str, int, int]
-_UMASK = os.umask(0)
-os.umask(_UMASK)
 
 # two-sided 95% Student t quantiles by degrees of freedom (1..30); 1.96 beyond
 _T95 = (
@@ -45,20 +42,6 @@ _T95 = (
 
 def key_of(row: dict[str, str]) -> Key:
     return (row["world"], row["shift"], row["condition"], int(row["budget"]), int(row["seed"]))
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give it a normal file's mode
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def _csv_line(columns: Sequence[str], row: Mapping[str, object]) -> str:
@@ -91,20 +74,20 @@ class ResultsFolder:
                     f"{mine['settings']}: choose another --out or the same settings"
                 )
         else:
-            _atomic_write_text(path, json.dumps(mine, indent=2) + "\n")
+            files.write_text(path, json.dumps(mine, indent=2) + "\n")
 
     @staticmethod
     def _repair(path: Path, columns: Sequence[str]) -> None:
         """Create the file with its header, or drop a last line an interruption cut short."""
         if not path.is_file() or path.stat().st_size == 0:
-            _atomic_write_text(path, _csv_line(columns, dict(zip(columns, columns, strict=True))))
+            files.write_text(path, _csv_line(columns, dict(zip(columns, columns, strict=True))))
             return
         text = path.read_text()
         header = text.split("\n", 1)[0].split(",")
         if header != list(columns):
             raise UserError(f"{path}: columns {header}, expected {list(columns)}")
         if not text.endswith("\n"):
-            _atomic_write_text(path, text[: text.rfind("\n") + 1])
+            files.write_text(path, text[: text.rfind("\n") + 1])
 
     def rows(self) -> list[dict[str, str]]:
         """Every complete row of runs.csv (the last row wins if a key appears twice)."""
@@ -130,7 +113,7 @@ class ResultsFolder:
         """Rewrite runs.csv sorted by run key (atomically); returns the rows."""
         rows = sorted(self.rows(), key=key_of)
         header = _csv_line(COLUMNS, dict(zip(COLUMNS, COLUMNS, strict=True)))
-        _atomic_write_text(self.runs_csv, header + "".join(_csv_line(COLUMNS, r) for r in rows))
+        files.write_text(self.runs_csv, header + "".join(_csv_line(COLUMNS, r) for r in rows))
         return rows
 
 
@@ -285,5 +268,5 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
 
 def write_table(out: Path, rows: Sequence[dict[str, str]], settings: Settings) -> Path:
     path = Path(out) / "table.md"
-    _atomic_write_text(path, markdown_table(rows, settings))
+    files.write_text(path, markdown_table(rows, settings))
     return path

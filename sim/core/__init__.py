@@ -1,6 +1,7 @@
 """The concept model shared by every world: concept space, scenes, edits, tasks, trajectories."""
 
 from sim.core.concepts import ABSENT, PRESENCE, PRESENT, Concept, ConceptSpace, Slot
+from sim.core.demonstration import check_demonstration, require_success
 from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
@@ -12,6 +13,7 @@ from sim.core.task import (
     Reward,
     Task,
     check_layouts,
+    check_seed,
     check_shift,
     draw_from_reward,
 )
@@ -42,9 +44,12 @@ __all__ = [
     "UserError",
     "World",
     "apply",
+    "check_demonstration",
     "check_layouts",
+    "check_seed",
     "check_shift",
     "draw_from_reward",
     "effective",
+    "require_success",
     "single_changes",
 ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -50,6 +51,12 @@ class Scene:
     world: str
     objects: tuple[Obj, ...]
     agent: tuple[float, ...] = ()
+
+    def is_finite(self) -> bool:
+        """True when every number of the scene (agent state, object positions) is finite."""
+        return all(math.isfinite(v) for v in self.agent) and all(
+            math.isfinite(v) for o in self.objects for v in o.pos
+        )
 
     def obj(self, slot: str) -> Obj:
         for o in self.objects:

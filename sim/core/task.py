@@ -14,6 +14,16 @@ TRAIN = "train"
 LAYOUTS = ("task", "train")  # where fresh tasks put the objects (World.fresh_tasks)
 
 
+MAX_SEED = 2**31 - 1
+
+
+def check_seed(seed: int, name: str = "seed") -> int:
+    """A seed is an integer from 0 to MAX_SEED."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        raise UserError(f"{name} must be an integer from 0 to {MAX_SEED}, not {seed}")
+    return seed
+
+
 def check_shift(shift: str) -> str:
     if shift not in SHIFTS:
         raise UserError(f"unknown shift {shift!r}; accepted: {', '.join(SHIFTS)}")

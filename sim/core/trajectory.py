@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from sim.core import files
 from sim.core.errors import UserError
 from sim.core.scene import Scene
 
@@ -57,10 +56,8 @@ class Trajectory:
     def save(self, path: str | Path) -> Path:
         """Write atomically as .npz (scenes as JSON text, no pickled objects)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         scenes = json.dumps([s.to_dict() for s in self.scenes])
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as f:
+        with files.atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(
                 f,
                 scenes=np.frombuffer(scenes.encode(), dtype=np.uint8),
@@ -68,13 +65,16 @@ class Trajectory:
                 actions=self.actions,
                 success=np.array(self.success),
             )
-        os.replace(tmp, path)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> Trajectory:
         path = Path(path)
         expected = "an .npz with arrays scenes, observations, actions, success (Trajectory.save)"
+        if not path.is_file():
+            raise UserError(f"{path}: no such file; expected {expected}")
+        if not zipfile.is_zipfile(path):
+            raise UserError(f"{path}: not an .npz archive; expected {expected}")
         try:
             with np.load(path, allow_pickle=False) as z:
                 missing = {"scenes", "observations", "actions", "success"} - set(z.files)
@@ -91,5 +91,5 @@ class Trajectory:
         try:
             scenes = tuple(Scene.from_dict(d) for d in json.loads(scenes_json))
             return cls(scenes, obs, actions, success)
-        except (json.JSONDecodeError, AssertionError, UserError) as e:
+        except (json.JSONDecodeError, AssertionError, TypeError, RecursionError, UserError) as e:
             raise UserError(f"{path}: malformed trajectory: {e}") from None

@@ -9,6 +9,7 @@ import numpy as np
 
 from sim.core.concepts import ConceptSpace
 from sim.core.edit import Edit, apply
+from sim.core.errors import UserError
 from sim.core.scene import Scene
 from sim.core.task import Task
 from sim.core.trajectory import Trajectory
@@ -65,9 +66,14 @@ class World(abc.ABC):
         """True once nothing more can happen (an episode may end before the horizon)."""
         return False
 
-    @abc.abstractmethod
     def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
-        """R' judged on the states of one rollout (scenes[0] is the initial scene)."""
+        """R' judged on the states of one rollout (scenes[0] is the initial scene); never True
+        for a rollout with a non-finite number in any of its states."""
+        return all(s.is_finite() for s in scenes) and self.meets_reward(task, scenes)
+
+    @abc.abstractmethod
+    def meets_reward(self, task: Task, scenes: Sequence[Scene]) -> bool:
+        """R' on the finite states of one rollout (what `success` asks of each world)."""
 
     # -- tasks and demonstrations -------------------------------------------------------------
     @abc.abstractmethod
@@ -108,8 +114,13 @@ class World(abc.ABC):
         history = [[s] for s in cur]
         frames = [self.render_batch(cur)]  # each (B, H, W, 3)
         actions = []
-        for _ in range(self.horizon):
+        for t in range(self.horizon):
             a = np.asarray(act(frames[-1]))  # (B, A) | (B,)
+            if not self.discrete and not np.isfinite(a).all():
+                raise UserError(
+                    f"the policy's actions at step {t} are not finite numbers: a policy with "
+                    "non-finite outputs cannot be rolled out or scored"
+                )
             cur = self.step_batch(cur, a)
             for h, s in zip(history, cur, strict=True):
                 h.append(s)
@@ -124,6 +135,15 @@ class World(abc.ABC):
 
     def rollout(self, task: Task, act: ActBatch, *, scene: Scene | None = None) -> Trajectory:
         return self.rollout_batch([task], act, scenes=None if scene is None else [scene])[0]
+
+    def replay(self, task: Task, actions: np.ndarray) -> Trajectory:
+        """The trajectory `actions` make from the task's scene: (T, A) float32 or (T,) int64,
+        stepped through this world's dynamics, rendered, and judged by R'."""
+        scenes = [task.scene]
+        for a in actions:
+            scenes.append(self.step_batch([scenes[-1]], np.asarray(a)[None])[0])
+        obs = self.render_batch(scenes)  # (T+1, H, W, 3)
+        return Trajectory(tuple(scenes), obs, np.asarray(actions), self.success(task, scenes))
 
     def demonstrate(self, task: Task) -> Trajectory:
         """The scripted expert's closed-loop demonstration of `task`."""

@@ -47,7 +47,7 @@ class DoorKeyWorld(World):
     def done(self, scene: Scene) -> bool:
         return parse(scene).done()
 
-    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+    def meets_reward(self, task: Task, scenes: Sequence[Scene]) -> bool:
         """On the goal by the last state, and never on or next to a lava tile R' avoids."""
         final = parse(scenes[-1])
         if final.agent != final.goal:

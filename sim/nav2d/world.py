@@ -93,7 +93,7 @@ class Nav2DWorld(World):
     def done(self, scene: Scene) -> bool:
         return scene.agent[2] >= HORIZON
 
-    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+    def meets_reward(self, task: Task, scenes: Sequence[Scene]) -> bool:
         final = scenes[-1]
         if _dist(final.agent, final.obj("goal").pos) >= SUCCESS_RADIUS:
             return False

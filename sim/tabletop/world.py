@@ -81,6 +81,8 @@ class TabletopWorld(World):
     def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:
         actions = np.asarray(actions, np.float64)
         assert actions.shape == (len(scenes), 4), f"actions must be (B, 4), got {actions.shape}"
+        if not np.isfinite(actions).all():
+            raise UserError("tabletop actions are pick and place points in metres: finite numbers")
         out = []
         with self._lock:
             pp = self._parts()[2]
@@ -100,7 +102,7 @@ class TabletopWorld(World):
     def done(self, scene: Scene) -> bool:
         return bool(scene.agent) and scene.agent[0] >= HORIZON
 
-    def success(self, task: Task, scenes: Sequence[Scene]) -> bool:
+    def meets_reward(self, task: Task, scenes: Sequence[Scene]) -> bool:
         return on_goal(task.reward, scenes)
 
     def expert_action(self, task: Task, scene: Scene) -> np.ndarray:

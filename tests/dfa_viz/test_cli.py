@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import subprocess
 import sys
@@ -53,7 +54,7 @@ def test_json_report_has_the_promised_fields(run_json):
     change = r["counterfactual"][0][0]
     assert set(change) == {"slot", "concept", "from", "to"} and change["slot"] == "goal"
     assert r["feedback"][0]["label"] == "TI"
-    assert r["success_after"] > r["success_before"]
+    assert r["success_after"] - r["success_before"] >= 0.3  # 0.3 -> 1.0 measured
 
 
 def _chunks(path):
@@ -160,12 +161,70 @@ def test_bad_input_gives_one_clear_line(args, message):
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in proc.stderr
 
 
-def test_malformed_demo_and_checkpoint_files(tmp_path):
-    bad_demo = tmp_path / "demo.npz"
-    bad_demo.write_bytes(b"garbage")
-    proc = dfa("run", "--demo", str(bad_demo))
-    assert proc.returncode == 2 and "not a readable trajectory" in proc.stderr
-    assert "Traceback" not in proc.stderr
+def one_line_error(capsys, *args: str) -> str:
+    """Run `dfa ARGS` in this process: it must exit 2 with one line on stderr; returns it."""
+    assert main(list(args)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("dfa: error: "), err
+    return err[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--seed", "-1"], "seed must be an integer from 0 to 2147483647, not -1"),
+        (["--seed", "18446744073709551616"], "seed must be an integer from 0 to 2147483647"),
+        (["--max-size", "0"], "--max-size must be from 1 to 3 concept changes, not 0"),
+        (["--accuracy", "1.5"], "accuracy is a probability in [0, 1], not 1.5"),
+        (
+            ["--label", "goal.colour=TI", "goal.colour=TR"],
+            "--label goal.colour is given both TI and TR; give one answer",
+        ),
+    ],
+)
+def test_bad_run_options_are_one_line(capsys, args, message):
+    assert message in one_line_error(capsys, "run", *args)
+
+
+def test_out_naming_a_file_is_refused(capsys, tmp_path):
+    (tmp_path / "f").write_text("keep")
+    line = one_line_error(capsys, "run", "--out", str(tmp_path / "f"))
+    assert "is a file; give a folder for the recordings" in line
+    assert (tmp_path / "f").read_text() == "keep"
+
+
+def test_malformed_demo_files(capsys, tmp_path, nav, nav_policy):
+    from policy import failing_test_task
+
+    bad = tmp_path / "demo.npz"
+    bad.write_bytes(b"garbage")
+    assert "demo.npz: not an .npz archive" in one_line_error(capsys, "run", "--demo", str(bad))
+    npy = tmp_path / "array.npz"
+    with open(npy, "wb") as f:
+        np.save(f, np.zeros((21, 2)))
+    assert "array.npz: not an .npz archive" in one_line_error(capsys, "run", "--demo", str(npy))
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    demo = nav.demonstrate(task)
+    small = dataclasses.replace(
+        demo, observations=np.ascontiguousarray(demo.observations[:, ::2, ::2])
+    )
+    path = small.save(tmp_path / "small.npz")
+    line = one_line_error(capsys, "run", "--demo", str(path))
+    assert "frames of shape (18, 18, 3), but nav2d renders (36, 36, 3)" in line
+    nan = demo.actions.copy()
+    nan[3, 0] = np.nan
+    path = dataclasses.replace(demo, actions=nan).save(tmp_path / "nan.npz")
+    line = one_line_error(capsys, "run", "--demo", str(path))
+    assert "the action at step 3 is not a finite number" in line
+    ints = dataclasses.replace(demo, actions=demo.actions.astype(np.int64)).save(tmp_path / "i.npz")
+    assert "nav2d needs float actions" in one_line_error(capsys, "run", "--demo", str(ints))
+    # one waypoint short of the goal: a demonstration that does not do what the task asks
+    miss = dataclasses.replace(demo, actions=demo.actions * 0.5).save(tmp_path / "miss.npz")
+    line = one_line_error(capsys, "run", "--demo", str(miss))
+    assert "does not succeed at what the task asks" in line
+
+
+def test_malformed_checkpoints(capsys, tmp_path):
     ckpt = tmp_path / "ckpt"
     ckpt.mkdir()
     (ckpt / "config.json").write_text(
@@ -174,7 +233,7 @@ def test_malformed_demo_and_checkpoint_files(tmp_path):
                 "policy": {
                     "world": "nav2d",
                     "obs_shape": [36, 36, 3],
-                    "action_dim": 3,
+                    "action_dim": 2,
                     "discrete": False,
                 }
             }
@@ -183,9 +242,32 @@ def test_malformed_demo_and_checkpoint_files(tmp_path):
     from safetensors.numpy import save_file
 
     save_file({"x": np.zeros(3, np.float32)}, str(ckpt / "model.safetensors"))
-    proc = dfa("run", "--policy", str(ckpt))
-    assert proc.returncode == 2 and "do not match the architecture" in proc.stderr
-    assert len(proc.stderr.strip().splitlines()) == 1
+    line = one_line_error(capsys, "run", "--policy", str(ckpt))
+    assert "do not match the architecture" in line
+    (ckpt / "config.json").write_text('{"policy": {"world": "nav2d", "hidden": -5}}')
+    assert "obs_shape must be a list of 3 integers" in one_line_error(
+        capsys, "run", "--policy", str(ckpt)
+    )
+
+
+def test_a_failed_run_leaves_the_earlier_recording(capsys, tmp_path):
+    args = ["run", "--shift", "object_ti", "--seed", "0", "--json", "--out", str(tmp_path)]
+    assert main(args) == 0
+    capsys.readouterr()
+    path = tmp_path / "nav2d-object_ti-seed0.rrd"
+    before = path.read_bytes()
+    # the search runs, then the label names a concept the edit does not change: an error
+    line = one_line_error(capsys, *args, "--label", "distractor.presence=TI")
+    assert "--label distractor.presence: the counterfactual edit changes goal." in line
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no partial files
+
+
+def test_json_output_is_strict_json(run_json):
+    def no_constants(name):
+        raise AssertionError(f"{name} is not JSON")
+
+    json.loads(json.dumps(run_json), parse_constant=no_constants)
 
 
 def test_a_given_demonstration_is_used(tmp_path, nav, nav_policy):

@@ -1,4 +1,3 @@
-import numpy as np
 import pytest
 
 from dfa_viz.loop import run_loop
@@ -9,17 +8,18 @@ pytestmark = pytest.mark.slow
 
 
 @pytest.mark.parametrize("shift", ["object_ti", "distractor_ti"])
-def test_feedback_and_finetuning_raise_success(nav, nav_policy, shift):
-    gains = []
-    for seed in range(3):
+def test_feedback_and_finetuning_raise_success(nav, nav_policy, shift, learns):
+    """Measured with the committed base policy (5 seeds): object_ti 0.58 -> 1.0, distractor_ti
+    0.64 -> 1.0."""
+    pairs = []
+    for seed in range(5):
         task, _ = failing_test_task(nav, nav_policy, shift, seed)
         report = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=seed), seed=seed)
         assert report.failed and report.search.found
         assert [lab.relevant for lab in report.feedback.labels] == [False]
         assert report.n_augmented > 0
-        assert report.success_after > report.success_before
-        gains.append(report.success_after - report.success_before)
-    assert np.mean(gains) >= 0.3
+        pairs.append((report.success_before, report.success_after))
+    learns(pairs, min_after=0.85, min_gain=0.2)
 
 
 def test_tr_feedback_augments_nothing(nav, nav_policy):

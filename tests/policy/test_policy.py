@@ -1,5 +1,3 @@
-import json
-
 import numpy as np
 import pytest
 import torch
@@ -13,33 +11,18 @@ from policy import (
     save_policy,
     training_demos,
 )
-from policy.model import ImagePolicy, Policy, PolicyConfig
 from sim.core import SHIFTS, Feedback, Label, UserError
 
 
 def test_checkpoint_round_trip_is_bit_exact(nav, nav_policy, tmp_path):
     save_policy(nav_policy, tmp_path / "ckpt")
-    back = load_policy(tmp_path / "ckpt", world="nav2d")
+    back = load_policy(tmp_path / "ckpt", world=nav)
     for (k, a), (k2, b) in zip(
         nav_policy.net.state_dict().items(), back.net.state_dict().items(), strict=True
     ):
         assert k == k2 and torch.equal(a, b)
     obs = nav.demonstrate(nav.train_task()).observations
     assert np.array_equal(nav_policy(obs), back(obs))
-
-
-def test_checkpoint_of_the_wrong_shape_is_refused(tmp_path):
-    small = Policy(ImagePolicy(PolicyConfig("nav2d", (36, 36, 3), 2, False, hidden=50)))
-    save_policy(small, tmp_path / "ckpt")
-    cfg = json.loads((tmp_path / "ckpt" / "config.json").read_text())
-    cfg["policy"]["hidden"] = 100
-    (tmp_path / "ckpt" / "config.json").write_text(json.dumps(cfg))
-    with pytest.raises(UserError, match=r"has shape \(50,?\), expected \(100,?\)"):
-        load_policy(tmp_path / "ckpt")
-    with pytest.raises(UserError, match=r"for world 'nav2d', not 'doorkey'"):
-        load_policy(tmp_path / "ckpt", world="doorkey")
-    with pytest.raises(UserError, match=r"missing config\.json"):
-        load_policy(tmp_path)
 
 
 def test_base_policy_solves_the_training_distribution(nav, nav_policy):

@@ -51,8 +51,13 @@ def test_trajectory_npz_round_trip_is_bit_exact(nav, tmp_path):
 def test_malformed_trajectory_files_say_what_is_wrong(tmp_path):
     bad = tmp_path / "bad.npz"
     bad.write_bytes(b"not a zip")
-    with pytest.raises(UserError, match="not a readable trajectory"):
+    with pytest.raises(UserError, match=r"bad.npz: not an .npz archive"):
         Trajectory.load(bad)
+    npy = tmp_path / "renamed.npz"
+    with open(npy, "wb") as f:
+        np.save(f, np.zeros((3, 2)))  # a .npy file given an .npz name
+    with pytest.raises(UserError, match=r"renamed.npz: not an .npz archive"):
+        Trajectory.load(npy)
     partial = tmp_path / "partial.npz"
     np.savez(partial, actions=np.zeros((3, 2)))
     with pytest.raises(UserError, match="missing"):

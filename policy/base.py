@@ -1,0 +1,166 @@
+"""The base policies of record: one per world, committed under policy/weights/<world>/.
+
+A base policy is cloned on the expert's demonstrations of the world's training distribution.
+Cloning on a CPU gives other weights on another processor (torch's kernels differ between
+Intel and AMD), so the weights every result and test is measured with are committed to the
+repository, with the recipe they were trained from in their config.json:
+
+    recipe      the training settings, the architecture, a hash of the training tasks' initial
+                scenes and of the demonstrated actions (rounded, so that no float-level detail
+                of a processor enters it), and per demonstration the mean colour of its frames
+    command     the command that trained them (`dfa train --retrain --worlds <world>`)
+    trained_on  the machine, torch's version, the date, the final loss, the training success
+
+`base_policy(world)` loads the committed weights once it has checked that today's recipe is the
+one they were trained with. A changed recipe with stale weights is an error that names the
+command to retrain, never a silent retrain. Worlds without committed weights (and seeds other
+than 0) are trained on first use and cached under `cache_dir()` instead.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from policy.checkpoint import load_policy, read_config, save_policy
+from policy.model import Policy, PolicyConfig
+from policy.train import (
+    BASE,
+    LossCallback,
+    TrainConfig,
+    behaviour_clone,
+    training_demos,
+    training_tasks,
+)
+from sim.core import Trajectory, UserError, World
+
+WEIGHTS = Path(__file__).parent / "weights"
+RECORD_SEED = 0  # the seed whose base policies are committed
+FRAME_TOLERANCE = 0.5  # mean frame colours may differ this much (of 255) between renderers
+
+
+def cache_dir() -> Path:
+    """Where base policies without committed weights are cached: $DFA_CACHE, else ~/.cache/dfa."""
+    return Path(os.environ.get("DFA_CACHE", Path.home() / ".cache" / "dfa"))
+
+
+def machine_name() -> str:
+    """The processor and core count, as one line (e.g. "AMD EPYC 7B13; 2 logical cores")."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}; {os.cpu_count()} logical cores"
+
+
+def _sha(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def recipe(world: World, demos: list[Trajectory], *, seed: int, config: TrainConfig) -> dict:
+    """What a base policy is trained from, in terms that are the same on every processor."""
+    arch = PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+    actions = [np.round(d.actions.astype(np.float64), 4).tolist() for d in demos]
+    doc = {
+        "world": world.name,
+        "seed": seed,
+        "train": asdict(config),
+        "policy": arch.to_dict(),
+        "demonstrations": len(demos),
+        "initial_scenes": _sha(json.dumps([d.scenes[0].to_dict() for d in demos])),
+        "actions": _sha(json.dumps(actions)),
+        "frame_colours": [
+            [round(float(c), 3) for c in d.observations.reshape(-1, 3).mean(axis=0)] for d in demos
+        ],
+    }
+    return json.loads(json.dumps(doc))  # as it reads back from config.json (lists, not tuples)
+
+
+def recipe_change(then: dict, now: dict) -> str | None:
+    """How two recipes differ (None when they agree): the first differing part, in words."""
+    for key in sorted(set(then) | set(now)):
+        a, b = then.get(key), now.get(key)
+        if key == "frame_colours" and isinstance(a, list) and isinstance(b, list):
+            same = len(a) == len(b) and all(
+                np.abs(np.subtract(x, y)).max() <= FRAME_TOLERANCE
+                for x, y in zip(a, b, strict=True)
+            )
+            if not same:
+                return "the training frames look different (the renderer or the tasks changed)"
+        elif isinstance(a, dict) and isinstance(b, dict):
+            for k in sorted(set(a) | set(b)):
+                if a.get(k) != b.get(k):
+                    return f"{key}.{k}: {json.dumps(a.get(k))} then, {json.dumps(b.get(k))} now"
+        elif a != b:
+            return f"{key}: {json.dumps(a)[:40]} then, {json.dumps(b)[:40]} now"
+    return None
+
+
+def base_folder(world: World, *, seed: int = RECORD_SEED, config: TrainConfig = BASE) -> Path:
+    """Where a world's base policy is kept: policy/weights/<world>/ for the policies of record
+    (seed 0, the default recipe), else a cache folder named by the recipe."""
+    if seed == RECORD_SEED and config == BASE:
+        return WEIGHTS / world.name
+    now = recipe(world, training_demos(world, seed), seed=seed, config=config)
+    return _cached(now)
+
+
+def base_policy(
+    world: World,
+    *,
+    seed: int = RECORD_SEED,
+    config: TrainConfig = BASE,
+    retrain: bool = False,
+    on_loss: LossCallback | None = None,
+) -> Policy:
+    """The base policy of `world`: the committed weights of record, checked against today's
+    recipe; trained (and cached) where none are committed. `retrain` trains it again and
+    writes it where it is kept (policy/weights/<world>/ for the policies of record)."""
+    demos = training_demos(world, seed)
+    now = recipe(world, demos, seed=seed, config=config)
+    record = seed == RECORD_SEED and config == BASE
+    folder = WEIGHTS / world.name if record else _cached(now)
+    if record and not retrain and (folder / "config.json").is_file():
+        then = read_config(folder).get("meta", {}).get("recipe", {})
+        change = recipe_change(then, now)
+        if change is not None:
+            raise UserError(
+                f"the committed {world.name} base policy ({folder}) was trained with another "
+                f"recipe ({change}); retrain it with `dfa train --retrain --worlds "
+                f"{world.name}` and commit {folder}"
+            )
+        return load_policy(folder, world=world)
+    if not retrain and (folder / "model.safetensors").is_file():
+        return load_policy(folder, world=world)
+    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    solved = sum(r.success for r in world.rollout_batch(training_tasks(world, seed), policy))
+    meta: dict[str, Any] = {
+        "recipe": now,
+        "command": f"dfa train --retrain --worlds {world.name}"
+        + (f" --seed {seed}" if seed else ""),
+        "trained_on": machine_name(),
+        "torch": torch.__version__,
+        "date": time.strftime("%Y-%m-%d"),
+        "final_loss": round(losses[-1], 6),
+        "training_tasks_solved": f"{solved}/{len(demos)}",
+    }
+    save_policy(policy, folder, meta=meta)
+    return policy
+
+
+def _cached(now: dict) -> Path:
+    key = _sha(json.dumps({k: v for k, v in now.items() if k != "frame_colours"}, sort_keys=True))
+    return cache_dir() / "policies" / f"{now['world']}-{key}"

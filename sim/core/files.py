@@ -1,0 +1,77 @@
+"""Files written atomically: into a temporary file beside the target, then moved into place.
+
+A reader sees either the old file or the whole new one, never a part; a write that fails (an
+exception, a killed process) leaves the old file as it was and no temporary file behind it
+(a killed process may leave a hidden `.<name>.*.tmp` file, never the target half-written).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+def temp_beside(path: str | Path) -> Path:
+    """A new, empty, hidden temporary file in `path`'s folder (created with it if needed).
+
+    Its name keeps `path`'s suffix, so tools that look at the extension still accept it.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(
+        dir=path.parent, prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}"
+    )
+    os.close(fd)
+    return Path(tmp)
+
+
+def commit(tmp: str | Path, path: str | Path) -> Path:
+    """Move a finished temporary file into place: fsync it, give it a normal file's mode
+    (mkstemp makes 0600), rename it over `path`, fsync the folder."""
+    tmp, path = Path(tmp), Path(path)
+    with open(tmp, "rb") as f:
+        os.fsync(f.fileno())
+    os.chmod(tmp, 0o666 & ~_UMASK)
+    os.replace(tmp, path)
+    fd = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    return path
+
+
+def discard(tmp: str | Path) -> None:
+    """Remove a temporary file that will not be committed (if it is still there)."""
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path to write `path`'s new content to; committed when the block ends
+    without an exception, discarded when it raises."""
+    tmp = temp_beside(path)
+    try:
+        yield tmp
+        commit(tmp, path)
+    finally:
+        discard(tmp)
+
+
+def write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write `data` to `path` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write UTF-8 `text` to `path` atomically."""
+    return write_bytes(path, text.encode())

@@ -1,0 +1,140 @@
+"""Checkpoints from outside: every malformed config or weights file is one line, checked
+before anything is built; the committed base policies of record load and match their recipe."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+import torch
+from safetensors.torch import load_file, save_file
+
+from policy import base as B
+from policy import load_policy, save_policy
+from policy.model import ImagePolicy, Policy, PolicyConfig
+from sim import get_world
+from sim.core import UserError
+
+
+@pytest.fixture
+def ckpt(nav, tmp_path):
+    """A valid nav2d checkpoint folder (a small untrained net) to break in each test."""
+    small = Policy(ImagePolicy(PolicyConfig("nav2d", (36, 36, 3), 2, False, hidden=50)))
+    return save_policy(small, tmp_path / "ckpt")
+
+
+def _set(folder, **fields):
+    doc = json.loads((folder / "config.json").read_text())
+    doc["policy"].update(fields)
+    (folder / "config.json").write_text(json.dumps(doc))
+
+
+@pytest.mark.parametrize(
+    ("raw", "message"),
+    [
+        (b"[1, 2, 3]", 'expected a JSON object with a "policy" object'),
+        (b'{"policy": [36, 36, 3]}', 'expected a JSON object with a "policy" object'),
+        (b"\xff\xfe{not utf-8", "config.json: not UTF-8 text; expected a JSON object"),
+        (b"{" * 100_000, "config.json: not valid JSON"),
+    ],
+)
+def test_a_config_that_is_not_a_json_object_is_refused(nav, ckpt, raw, message):
+    (ckpt / "config.json").write_bytes(raw)
+    with pytest.raises(UserError, match=message):
+        load_policy(ckpt, world=nav)
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"obs_shape": "abc"}, 'obs_shape must be a list of 3 integers from 1 to 1024, not "abc"'),
+        ({"obs_shape": [4, 4, 3]}, r"obs_shape \[4, 4, 3\] does not fit nav2d"),
+        ({"hidden": -5}, "hidden must be an integer from 1 to 4096, not -5"),
+        ({"hidden": 10**9}, "hidden must be an integer from 1 to 4096"),
+        ({"channels": [32, 64, 100000]}, "channels must be a list of 3 integers from 1 to 256"),
+        ({"discrete": True}, "discrete=true, action_dim=2 does not fit nav2d"),
+        ({"action_dim": 3}, "action_dim=3 does not fit nav2d"),
+        ({"world": "doorkey"}, "is for world \"doorkey\", not 'nav2d'"),
+        ({"kernels": [16, 16, 16]}, "do not fit 36x36 observations"),
+        ({"colour": "red"}, r"unknown fields \['colour'\]"),
+    ],
+)
+def test_config_values_are_checked_before_anything_is_built(nav, ckpt, fields, message):
+    _set(ckpt, **fields)
+    with pytest.raises(UserError, match=message) as err:
+        load_policy(ckpt, world=nav)
+    assert "\n" not in str(err.value)
+
+
+def test_weights_of_another_world_are_refused(nav, ckpt):
+    table = get_world("tabletop")
+    shutil.copy(B.WEIGHTS / "tabletop" / "model.safetensors", ckpt / "model.safetensors")
+    _set(ckpt, hidden=100)
+    with pytest.raises(UserError, match=r"has shape \(100, \d+\), expected \(100, \d+\)"):
+        load_policy(ckpt, world=nav)
+    # tabletop's own config, relabelled nav2d
+    shutil.copy(B.WEIGHTS / "tabletop" / "config.json", ckpt / "config.json")
+    _set(ckpt, world="nav2d")
+    with pytest.raises(UserError, match=r"obs_shape \[80, 80, 3\] does not fit nav2d"):
+        load_policy(ckpt, world=nav)
+    assert load_policy(B.WEIGHTS / "tabletop", world=table) is not None
+
+
+def test_non_finite_weights_are_refused(nav, ckpt):
+    state = load_file(ckpt / "model.safetensors")
+    state["head.0.bias"][3] = float("nan")
+    save_file(state, str(ckpt / "model.safetensors"))
+    with pytest.raises(UserError, match=r"tensor head.0.bias has 1 non-finite values"):
+        load_policy(ckpt, world=nav)
+
+
+def test_missing_files_and_folders(nav, ckpt, tmp_path):
+    with pytest.raises(UserError, match="not a folder"):
+        load_policy(tmp_path / "nowhere", world=nav)
+    (ckpt / "config.json").unlink()
+    with pytest.raises(UserError, match=r"missing config\.json"):
+        load_policy(ckpt, world=nav)
+    (ckpt / "model.safetensors").write_bytes(b"garbage")
+    _set_file = ckpt / "config.json"
+    _set_file.write_text(
+        json.dumps({"policy": PolicyConfig("nav2d", (36, 36, 3), 2, False).to_dict()})
+    )
+    with pytest.raises(UserError, match="not a readable safetensors file"):
+        load_policy(ckpt, world=nav)
+
+
+@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+def test_committed_base_policies_match_todays_recipe(name):
+    """The weights of record are in the repository, with the recipe they were trained from;
+    loading them checks that recipe against today's (no retraining, on any machine)."""
+    world = get_world(name)
+    folder = B.WEIGHTS / name
+    meta = json.loads((folder / "config.json").read_text())["meta"]
+    assert meta["command"] == f"dfa train --retrain --worlds {name}"
+    assert meta["training_tasks_solved"] == "10/10"
+    policy = B.base_policy(world)
+    stored = load_file(folder / "model.safetensors")
+    for key, value in policy.net.state_dict().items():
+        assert torch.equal(value, stored[key]), key
+
+
+def test_a_changed_recipe_with_stale_weights_is_an_error(nav, tmp_path, monkeypatch):
+    shutil.copytree(B.WEIGHTS / "nav2d", tmp_path / "nav2d")
+    doc = json.loads((tmp_path / "nav2d" / "config.json").read_text())
+    doc["meta"]["recipe"]["train"]["steps"] = 999
+    (tmp_path / "nav2d" / "config.json").write_text(json.dumps(doc))
+    monkeypatch.setattr(B, "WEIGHTS", tmp_path)
+    with pytest.raises(UserError) as err:
+        B.base_policy(nav)
+    message = str(err.value)
+    assert "trained with another recipe (train.steps: 999 then, 400 now)" in message
+    assert "dfa train --retrain --worlds nav2d" in message
+    doc["meta"]["recipe"] = {
+        **doc["meta"]["recipe"],
+        "train": B.recipe(nav, [], seed=0, config=B.BASE)["train"],
+    }
+    doc["meta"]["recipe"]["frame_colours"][0] = [0.0, 0.0, 0.0]
+    (tmp_path / "nav2d" / "config.json").write_text(json.dumps(doc))
+    with pytest.raises(UserError, match="the training frames look different"):
+        B.base_policy(nav)
