@@ -61,7 +61,7 @@ def run(
         progress=not json_out,
     )
     if json_out:
-        print(json.dumps(report.to_dict()))
+        print(json.dumps(report.to_dict(), allow_nan=False))
     else:
         from dfa_viz.report import format_report
 
@@ -111,7 +111,7 @@ def demo(
     world: str = "nav2d",
     shift: str = "distractor_ti",
     seed: int = 0,
-    port: int = 8080,
+    port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None,
     host: str = "127.0.0.1",
 ) -> None:
     """Open the feedback page on a default scenario, the diagnosis already computed.
@@ -123,9 +123,12 @@ def demo(
         world: the world of the scenario.
         shift: the shift of the scenario.
         seed: the seed of the scenario.
-        port: the port to try first.
-        host: the interface to bind.
+        port: when left out, 8080 or the next free one; a port given must be free (0: any).
+        host: the interface to bind; 0.0.0.0 exposes the page to the network.
     """
+    from dfa_viz.app.address import serving_port
+
+    serving_port(host, port)  # bad --host/--port: one line at once, before the heavy imports
     from dfa_viz.app import demo as demo_page
 
     demo_page(world, shift, seed, port=port, host=host)
@@ -133,7 +136,7 @@ def demo(
 
 def serve(
     world: str = "nav2d",
-    port: int = 8080,
+    port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None,
     host: str = "127.0.0.1",
     session: Path | None = None,
 ) -> None:
@@ -144,10 +147,13 @@ def serve(
 
     Args:
         world: the world the page opens on.
-        port: the port to try first (the next free one is taken if it is busy).
+        port: when left out, 8080 or the next free one; a port given must be free (0: any).
         host: the interface to bind; 0.0.0.0 exposes the page to the network.
         session: a session folder to resume (default: a new one under recordings/sessions/).
     """
+    from dfa_viz.app.address import serving_port
+
+    serving_port(host, port)  # bad --host/--port: one line at once, before the heavy imports
     from dfa_viz.app import serve as serve_app
 
     serve_app(world=world, port=port, host=host, session=session)

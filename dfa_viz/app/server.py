@@ -1,14 +1,23 @@
-"""The viser server: one LoopState per session, one Page per connected tab."""
+"""The viser server: one LoopState per session, one Page per connected tab.
+
+Only the page itself may drive a session: every HTTP request and WebSocket upgrade is checked
+by dfa_viz.app.address.PageGuard (Host and Origin) before viser sees it, and refused with 403.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import http
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import viser
+import websockets.asyncio.server
 
+from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_port, url
 from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState
@@ -54,32 +63,97 @@ def open_state(
     try:
         for note in sess.notes:
             print(f"dfa serve: {note}", flush=True)
-        return LoopState(sess, out=out, finetune_steps=finetune_steps)
+        state = LoopState(sess, out=out, finetune_steps=finetune_steps)
+        sess.forget_details()  # replayed: the state holds what is shown
+        return state
     except BaseException:
         sess.close()
         raise
 
 
+_serve_lock = threading.Lock()  # one guarded server starts at a time (see _guarded)
+_REPORTED = 20  # refusals printed per server; more are refused silently
+
+
+@contextlib.contextmanager
+def _guarded(guard: PageGuard) -> Iterator[None]:
+    """While a ViserServer is being constructed, make the websockets server it starts check
+    every request with `guard` first.
+
+    viser 1.1.1 has no hook for this: its server thread calls
+    `websockets.asyncio.server.serve(..., process_request=<its file server>)`, and the
+    constructor returns once that server is bound. So while the constructor runs, `serve` is a
+    subclass that puts the guard in front of viser's process_request (a refused request gets
+    403 and never reaches viser); the original is back before the constructor's caller goes on.
+    Guarded starts take turns (`_serve_lock`).
+    """
+    original = websockets.asyncio.server.serve
+    reported: list[str] = []
+
+    def check(connection, request):
+        port = connection.local_address[1]
+        why = guard.refusal(request.headers, port, upgrade="Upgrade" in request.headers)
+        if not why:
+            return None
+        if len(reported) < _REPORTED and why not in reported:
+            reported.append(why)
+            print(f"dfa serve: refused a request that is not from the page: {why}", flush=True)
+        return connection.respond(http.HTTPStatus.FORBIDDEN, f"Forbidden: {why}\n")
+
+    class GuardedServe(original):
+        def __init__(self, handler, *args, process_request=None, **kwargs):
+            def process(connection, request):
+                refused = check(connection, request)
+                if refused is not None or process_request is None:
+                    return refused
+                return process_request(connection, request)
+
+            super().__init__(handler, *args, process_request=process, **kwargs)
+
+    with _serve_lock:
+        websockets.asyncio.server.serve = GuardedServe
+        try:
+            yield
+        finally:
+            websockets.asyncio.server.serve = original
+
+
 def start(
     *,
     world: str = "nav2d",
-    port: int = 8080,
+    port: int | None = None,
     host: str = "127.0.0.1",
     session: Path | None = None,
     out: Path = Path("recordings"),
     finetune_steps: int | None = None,
     state: LoopState | None = None,
 ) -> App:
-    """Start serving (non-blocking) and print the URL; `App.stop()` ends it."""
+    """Start serving (non-blocking) and print the URL; `App.stop()` ends it.
+
+    `port`: None serves on 8080 or the next free port (and says so); a port given must be free
+    (0: any free port). Host and port are checked before a session folder is opened: bad ones
+    raise UserError and create nothing.
+    """
+    chosen, note = serving_port(host, port)
     if state is None:
         state = open_state(world=world, session=session, out=out, finetune_steps=finetune_steps)
     try:
-        server = viser.ViserServer(host=host, port=port, label="DFA", verbose=False)
-    except OSError as e:
+        with _guarded(PageGuard(host)):
+            server = viser.ViserServer(host=host, port=chosen, label="DFA", verbose=False)
+    except BaseException:
         state.close()
-        raise UserError(f"cannot serve on {host}:{port} ({e.strerror})") from None
+        raise
+    bound = server.get_port()
+    if chosen and bound != chosen:  # taken between the check and the bind
+        if port is not None:
+            server.stop()
+            state.close()
+            raise UserError(f"port {port} is busy on {host}; choose another --port")
+        note = moved_note(DEFAULT_PORT, bound)
+    if note:
+        print(f"dfa serve: {note}", flush=True)
     server.gui.configure_theme(show_share_button=False, brand_color=(28, 126, 214))
-    app = App(server, state, f"http://{host}:{server.get_port()}")
+    app = App(server, state, url(host, bound))
     worlds = tuple(WORLDS)
     lock = threading.Lock()
 
@@ -117,12 +191,13 @@ def wait_idle(state: LoopState, *, timeout_s: float = 600.0) -> None:
 def serve(
     *,
     world: str = "nav2d",
-    port: int = 8080,
+    port: int | None = None,
     host: str = "127.0.0.1",
     session: Path | None = None,
     out: Path = Path("recordings"),
 ) -> None:
-    """Serve the page until interrupted (Ctrl-C); the session folder keeps everything."""
+    """Serve the page until interrupted (Ctrl-C); the session folder keeps everything.
+    `port`: None for 8080 or the next free port; see `start`."""
     app = start(world=world, port=port, host=host, session=session, out=out)
     _block(app)
 
@@ -132,13 +207,15 @@ def demo(
     shift: str = "distractor_ti",
     seed: int = 0,
     *,
-    port: int = 8080,
+    port: int | None = None,
     host: str = "127.0.0.1",
     out: Path = Path("recordings"),
     block: bool = True,
 ) -> App:
     """Open the page on a default scenario with the diagnosis already computed: the task is
-    loaded, judged failed, demonstrated by the expert and searched before the URL is printed."""
+    loaded, judged failed, demonstrated by the expert and searched before the URL is printed.
+    Host and port are checked first (as in `start`), before any session folder is made."""
+    serving_port(host, port)
     check_shift(shift)
     state = open_state(world=world, out=out)
     try:

@@ -22,10 +22,12 @@ import json
 import os
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from sim.core import Trajectory, UserError
+from sim import WORLDS
+from sim.core import Trajectory, UserError, check_seed, check_shift
 
 LOG = "session.jsonl"
 LOCK = "session.lock"
@@ -57,6 +59,38 @@ EVENTS: dict[str, dict[str, tuple[type, ...]]] = {
 }
 
 
+def _check_world(world: str, name: str = "") -> None:
+    if world not in WORLDS:
+        where = f"{name}: " if name else ""
+        raise UserError(f"{where}unknown world {world!r}; accepted: {', '.join(WORLDS)}")
+
+
+def _check_shift(shift: str, name: str) -> None:
+    try:
+        check_shift(shift)
+    except UserError as e:
+        raise UserError(f"{name}: {e}") from None
+
+
+def _check_count(value: int, name: str) -> None:
+    if value < 0:
+        raise UserError(f"{name} must not be negative, got {value}")
+
+
+# (event type, field) -> a check of its value beyond its JSON type: check(value, "type.field")
+# raises UserError saying what is wrong and what is accepted
+VALUES: dict[tuple[str, str], Callable[[Any, str], object]] = {
+    ("session", "world"): _check_world,
+    ("task", "world"): _check_world,
+    ("task", "shift"): _check_shift,
+    ("task", "seed"): check_seed,
+    ("task", "task_seed"): check_seed,
+    ("tie", "index"): _check_count,
+    ("search", "max_size"): _check_count,
+    ("finetune", "n_augmented"): _check_count,
+}
+
+
 class SessionError(UserError):
     """A session folder that cannot be read or opened; the message names the file and line."""
 
@@ -66,8 +100,9 @@ def _check_fields(path: Path, line: int, event: Any) -> None:
     if not isinstance(event, dict):
         raise SessionError(f"{where}: expected a JSON object, got {type(event).__name__}")
     kind = event.get("type")
-    if kind not in EVENTS:
-        raise SessionError(f"{where}: unknown event type {kind!r}; accepted: {', '.join(EVENTS)}")
+    if not isinstance(kind, str) or kind not in EVENTS:
+        shown = repr(kind) if isinstance(kind, str) else json.dumps(kind)[:60]
+        raise SessionError(f"{where}: unknown event type {shown}; accepted: {', '.join(EVENTS)}")
     for key, types in EVENTS[kind].items():
         if key not in event:
             raise SessionError(
@@ -80,6 +115,25 @@ def _check_fields(path: Path, line: int, event: Any) -> None:
             raise SessionError(
                 f"{where}: {kind}.{key} must be {names}, got {json.dumps(value)[:60]}"
             )
+    for key in EVENTS[kind]:  # the values, once every type is right
+        check = VALUES.get((kind, key))
+        if check is not None:
+            try:
+                check(event[key], f"{kind}.{key}")
+            except UserError as e:
+                raise SessionError(f"{where}: {e}") from None
+
+
+def _why_not_json(e: BaseException) -> str:
+    if isinstance(e, json.JSONDecodeError):
+        return e.msg
+    if isinstance(e, UnicodeDecodeError):
+        return "not UTF-8 text"
+    if isinstance(e, RecursionError):
+        return "nested too deeply"
+    if "digits" in str(e):  # int("9" * 5000): more digits than Python converts
+        return "a number with too many digits"
+    return str(e).splitlines()[0][:100] if str(e) else type(e).__name__
 
 
 def read_events(folder: Path) -> tuple[list[dict[str, Any]], int, list[str]]:
@@ -104,15 +158,14 @@ def read_events(folder: Path) -> tuple[list[dict[str, Any]], int, list[str]]:
         try:
             text = chunk.decode("utf-8")
             event = json.loads(text)
-        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        except (ValueError, RecursionError) as e:  # UnicodeDecodeError, JSONDecodeError, ...
             if last:  # cut short by a crash: never acknowledged
                 notes.append(
                     f"{path}:{i}: incomplete last line (the server stopped while writing it); "
                     "it is ignored and will be cut off"
                 )
                 break
-            msg = e.msg if isinstance(e, json.JSONDecodeError) else "not UTF-8 text"
-            raise SessionError(f"{path}:{i}: not a JSON line ({msg})") from None
+            raise SessionError(f"{path}:{i}: not a JSON line ({_why_not_json(e)})") from None
         _check_fields(path, i, event)
         event["_line"] = i
         events.append(event)
@@ -142,8 +195,19 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
+def _summary(event: dict[str, Any]) -> dict[str, Any]:
+    """An event without its list fields: what a session keeps in memory once the event is
+    applied (a search's candidate lists would otherwise pile up, one per loop)."""
+    return {k: v for k, v in event.items() if not isinstance(v, list)}
+
+
 class Session:
-    """One open session folder: its events so far and a durable, thread-safe `append`."""
+    """One open session folder: its events so far and a durable, thread-safe `append`.
+
+    `events` holds every event of the log in order, each with its "_line". Events read at
+    open are whole until `forget_details()`; appended ones are kept as summaries (no list
+    fields: those are on disk, and the caller of `append` gets the whole event).
+    """
 
     def __init__(self, folder: Path, events: list[dict[str, Any]], size: int, notes: list[str]):
         self.folder = folder
@@ -165,6 +229,10 @@ class Session:
     def open(cls, folder: str | Path, *, world: str) -> Session:
         """Resume `folder` if it holds a session, else start one there (created if needed)."""
         folder = Path(folder)
+        try:
+            _check_world(world)
+        except UserError as e:
+            raise SessionError(f"{folder}: {e}") from None
         if (folder / LOG).exists():
             events, size, notes = read_events(folder)
             session = cls(folder, events, size, notes)
@@ -227,8 +295,15 @@ class Session:
                 _fsync_dir(self.folder)
             self._size += len(line)
             event["_line"] = len(self.events) + 1
-            self.events.append(event)
+            self.events.append(_summary(event))
         return event
+
+    def forget_details(self) -> None:
+        """Keep only the summary of each event so far (see `events`); once a session has been
+        replayed its events' lists (every candidate a search tried, every loss) are needed
+        on disk only."""
+        with self._lock:
+            self.events = [_summary(e) for e in self.events]
 
     # -- files next to the log ----------------------------------------------------------------
     def next_name(self, stem: str, suffix: str = "") -> str:

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from dfa_viz.app.sessions import LOG, Session, SessionError, read_events
+from sim import WORLDS
 from sim.core import Obj, Scene, Trajectory
+from sim.core.task import MAX_SEED
 
 
 def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
@@ -51,11 +53,27 @@ def test_appends_are_on_disk_and_resume(tmp_path):
     again.close()
 
 
+def test_events_in_memory_keep_no_lists_once_applied(tmp_path):
+    s = Session.open(tmp_path / "s", world="nav2d")
+    tried = [{"edit": [], "distances": [0.5] * 20, "dropped_at": None}] * 50
+    ev = s.append("search", size=None, max_size=2, counterfactuals=[], tried=tried)
+    assert ev["tried"] == tried  # the caller gets the whole event ...
+    assert s.events[-1] == {k: v for k, v in ev.items() if k not in ("tried", "counterfactuals")}
+    s.close()
+    again = Session.open(tmp_path / "s", world="nav2d")
+    assert again.events[-1]["tried"] == tried  # ... and so does a replay, until it is done
+    again.forget_details()
+    assert [e["_line"] for e in again.events] == [1, 2] and "tried" not in again.events[-1]
+    assert json.loads((tmp_path / "s" / LOG).read_text().splitlines()[1])["tried"] == tried
+    again.close()
+
+
 @pytest.mark.parametrize(
     ("bad", "expected"),
     [
         ("{not json", "not a JSON line"),
         ('{"type": "dance"}', "unknown event type 'dance'; accepted: session, task"),
+        ('{"type": ["task"]}', 'unknown event type ["task"]; accepted: session, task'),
         ('{"type": "judgement"}', "judgement event without 'failed'"),
         ('{"type": "judgement", "failed": "yes"}', "judgement.failed must be bool"),
         (
@@ -63,6 +81,25 @@ def test_appends_are_on_disk_and_resume(tmp_path):
             "task.seed must be int",
         ),
         ("[1, 2]", "expected a JSON object"),
+        ("[" * 200_000, "not a JSON line (nested too deeply)"),
+        ('{"type": "tie", "index": 1' + "0" * 5000 + "}", "not a JSON line (a number with too"),
+        (
+            '{"type": "task", "world": "nav2d", "shift": "object_ti", "seed": 0, "task_seed": -1}',
+            f"task.task_seed must be an integer from 0 to {MAX_SEED}, not -1",
+        ),
+        (
+            '{"type": "task", "world": "nav2d", "shift": "object_ti", "seed": -1, "task_seed": 1}',
+            f"task.seed must be an integer from 0 to {MAX_SEED}, not -1",
+        ),
+        (
+            '{"type": "task", "world": "mars", "shift": "object_ti", "seed": 0, "task_seed": 1}',
+            f"task.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}",
+        ),
+        (
+            '{"type": "task", "world": "nav2d", "shift": "up", "seed": 0, "task_seed": 1}',
+            "task.shift: unknown shift 'up'; accepted: object_ti,",
+        ),
+        ('{"type": "tie", "index": -2}', "tie.index must not be negative, got -2"),
     ],
 )
 def test_malformed_line_names_file_and_line_and_touches_nothing(tmp_path, bad, expected):
@@ -87,6 +124,20 @@ def test_header_is_checked(tmp_path):
     _write(tmp_path / "c")
     with pytest.raises(SessionError, match=r":1: empty session log"):
         Session.open(tmp_path / "c", world="nav2d")
+
+
+def test_a_header_naming_an_unknown_world_is_refused_at_open(tmp_path):
+    path = _write(tmp_path / "s", json.dumps({"type": "session", "version": 1, "world": "mars"}))
+    before = _snapshot(tmp_path / "s")
+    with pytest.raises(SessionError) as err:
+        Session.open(tmp_path / "s", world="nav2d")
+    assert str(err.value) == (
+        f"{path}:1: session.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}"
+    )
+    assert _snapshot(tmp_path / "s") == before
+    with pytest.raises(SessionError, match="unknown world 'mars'"):
+        Session.open(tmp_path / "new", world="mars")  # a new session: nothing is created
+    assert not (tmp_path / "new").exists()
 
 
 def test_line_cut_short_by_a_crash_is_dropped_and_cut_on_append(tmp_path):
@@ -177,6 +228,46 @@ def test_cli_serve_on_a_malformed_session_says_one_line(tmp_path):
         f"dfa: error: {path}:2: not a JSON line (Expecting property name enclosed in double quotes)"
     ]
     assert "Traceback" not in proc.stderr + proc.stdout
+    assert _snapshot(folder) == before
+
+
+@pytest.mark.parametrize(
+    ("lines", "line", "error"),
+    [
+        ([HEADER, "[" * 200_000], 2, "not a JSON line (nested too deeply)"),
+        (
+            [HEADER, TASK.replace('"task_seed": 3', '"task_seed": -1')],
+            2,
+            f"task.task_seed must be an integer from 0 to {MAX_SEED}, not -1",
+        ),
+        (
+            [HEADER, TASK.replace('"seed": 0', '"seed": -1')],
+            2,
+            f"task.seed must be an integer from 0 to {MAX_SEED}, not -1",
+        ),
+        (
+            [HEADER.replace("nav2d", "mars"), TASK],
+            1,
+            f"session.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}",
+        ),
+    ],
+    ids=["deep", "task_seed", "seed", "world"],
+)
+def test_cli_serve_refuses_a_bad_session_before_serving(tmp_path, lines, line, error):
+    folder = tmp_path / "s"
+    path = _write(folder, *lines)
+    before = _snapshot(folder)
+    proc = subprocess.run(
+        [sys.executable, "-m", "dfa_viz.cli", "serve", "--session", str(folder), "--port", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [f"dfa: error: {path}:{line}: {error}"]
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert "the page is at" not in proc.stdout  # no server was started
     assert _snapshot(folder) == before
 
 
