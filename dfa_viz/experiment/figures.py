@@ -20,7 +20,7 @@ from dfa_viz.experiment.conditions import (
     paper_value,
 )
 from dfa_viz.experiment.results import Cell, cells, panels
-from dfa_viz.recording import RrdFile
+from dfa_viz.recording import RrdFile, send_blueprint
 from sim.core import files
 
 COLOURS = {  # RGB 0..255
@@ -117,7 +117,8 @@ def _log_curves(rec, table) -> None:
     import rerun.blueprint as rrb
 
     pairs = panels(table)
-    rec.send_blueprint(
+    send_blueprint(
+        rec,
         rrb.Blueprint(
             rrb.Grid(
                 *(
@@ -131,7 +132,7 @@ def _log_curves(rec, table) -> None:
                 grid_columns=min(3, max(1, len(pairs))),
             ),
             collapse_panels=True,
-        )
+        ),
     )
 
     def send(entity: str, budgets, values, name: str, colour, width: float) -> None:

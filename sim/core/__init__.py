@@ -1,6 +1,14 @@
 """The concept model shared by every world: concept space, scenes, edits, tasks, trajectories."""
 
-from sim.core.concepts import ABSENT, PRESENCE, PRESENT, Concept, ConceptSpace, Slot
+from sim.core.concepts import (
+    ABSENT,
+    PRESENCE,
+    PRESENT,
+    Concept,
+    ConceptSpace,
+    Slot,
+    UserConcept,
+)
 from sim.core.demonstration import check_demonstration, require_success
 from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
 from sim.core.errors import UserError
@@ -12,6 +20,7 @@ from sim.core.task import (
     TRAIN,
     Reward,
     Task,
+    carrying_shift,
     check_layouts,
     check_seed,
     check_shift,
@@ -41,9 +50,11 @@ __all__ = [
     "Slot",
     "Task",
     "Trajectory",
+    "UserConcept",
     "UserError",
     "World",
     "apply",
+    "carrying_shift",
     "check_demonstration",
     "check_layouts",
     "check_seed",

@@ -28,11 +28,26 @@ class Concept:
 
 @dataclass(frozen=True)
 class Slot:
-    """An object slot. `optional` slots can be absent, so presence is an editable concept."""
+    """An object slot. `optional` slots can be absent, so presence is an editable concept.
+
+    kind: the kind of object the slot holds; slots of one kind are interchangeable to a person
+    (DoorKey's lava0..lava2 are all "lava"): "the lava does not matter" is said of the kind.
+    Defaults to the slot's name.
+    """
 
     name: str
     concepts: tuple[Concept, ...]
     optional: bool = False
+    kind: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.kind:
+            object.__setattr__(self, "kind", self.name)
+
+    @property
+    def concept_names(self) -> tuple[str, ...]:
+        """Presence first (for optional slots), then every concept, in order."""
+        return ((PRESENCE,) if self.optional else ()) + tuple(c.name for c in self.concepts)
 
     def concept(self, name: str) -> Concept:
         for c in self.concepts:
@@ -46,6 +61,25 @@ class Slot:
     @property
     def width(self) -> int:
         return sum(len(c.values) for c in self.concepts)
+
+
+@dataclass(frozen=True)
+class UserConcept:
+    """One concept as a person names it, and the (slot, concept) pairs it covers."""
+
+    name: str
+    """E.g. "goal.colour" or "lava.presence" (kind.concept)."""
+    members: tuple[tuple[str, str], ...]
+    """The (slot, concept) pairs of the concept space it covers (concept may be "presence")."""
+
+    @property
+    def is_presence(self) -> bool:
+        return self.members[0][1] == PRESENCE
+
+    def in_scene(self, scene: Scene) -> UserConcept | None:
+        """The part a scene shows: presence, and the looks of the slots present in it."""
+        members = tuple((s, c) for s, c in self.members if c == PRESENCE or scene.obj(s).present)
+        return UserConcept(self.name, members) if members else None
 
 
 @dataclass(frozen=True)
@@ -119,6 +153,36 @@ class ConceptSpace:
                 obj = Obj(s.name, False, obj.values, obj.pos)
             objs.append(obj)
         return Scene(like.world, tuple(objs), like.agent)
+
+    def values(self, slot: str, concept: str) -> tuple[str, ...]:
+        """Every instantiation of slot.concept; presence is (present, absent)."""
+        s = self.slot(slot)
+        if concept == PRESENCE:
+            if not s.optional:
+                raise UserError(f"slot {slot!r} is always present; its presence cannot change")
+            return (PRESENT, ABSENT)
+        return s.concept(concept).values
+
+    def accepted(self, reward, slot: str, concept: str) -> tuple[str, ...]:
+        """The instantiations of slot.concept that the intended reward R' (a sim.core.Reward)
+        accepts: those it allows when it names the concept, else every one."""
+        every = self.values(slot, concept)
+        allowed = reward.allowed_values(slot, concept)
+        return every if allowed is None else tuple(v for v in every if v in allowed)
+
+    def user_concepts(self) -> tuple[UserConcept, ...]:
+        """Every concept as a person names it ("goal.colour", "lava.presence"), in the order
+        of the space: one per (kind, concept), covering that concept of every slot of the kind."""
+        groups: dict[str, list[tuple[str, str]]] = {}
+        for s in self.slots:
+            for concept in s.concept_names:
+                groups.setdefault(f"{s.kind}.{concept}", []).append((s.name, concept))
+        return tuple(UserConcept(name, tuple(members)) for name, members in groups.items())
+
+    def user_concept(self, slot: str, concept: str) -> UserConcept:
+        """The user concept (slot, concept) belongs to."""
+        name = f"{self.slot(slot).kind}.{concept}"
+        return next(uc for uc in self.user_concepts() if uc.name == name)
 
     def check_value(self, slot: str, concept: str, value: str) -> None:
         """Raise a UserError unless `value` is an instantiation of slot.concept."""

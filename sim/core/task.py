@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-from sim.core.concepts import PRESENCE, PRESENT
+from sim.core.concepts import ABSENT, PRESENCE, PRESENT, ConceptSpace
 from sim.core.errors import UserError
 from sim.core.scene import Scene
 
@@ -112,3 +112,28 @@ def draw_from_reward(scene: Scene, reward: Reward, rng) -> Scene:
             replace(o, present=v == PRESENT) if concept == PRESENCE else o.with_value(concept, v)
         )
     return scene
+
+
+def carrying_shift(space: ConceptSpace, task: Task) -> Reward:
+    """R' narrowed so that every task drawn from it keeps the test task's shift (its other open
+    concepts stay open): the cause at the value the shift gave it, which R' accepts and
+    training never showed; for a distractor, every object of its kind present (or absent) and
+    looking as in the test task. Tasks without a cause (`other`, training) keep R'."""
+    if task.cause is None:
+        return task.reward
+    slot, concept = task.cause
+    fixed: dict[tuple[str, str], tuple[str, ...]] = {}
+    if concept == PRESENCE:
+        kind = space.slot(slot).kind
+        for s in space.slots:
+            if s.kind != kind:
+                continue
+            o = task.scene.obj(s.name)
+            fixed[(s.name, PRESENCE)] = (PRESENT if o.present else ABSENT,)
+            if o.present:
+                fixed.update({(s.name, c.name): (o.value(c.name),) for c in s.concepts})
+    else:
+        fixed[(slot, concept)] = (task.scene.obj(slot).value(concept),)
+    allowed = [(s, c, fixed.pop((s, c), vals)) for s, c, vals in task.reward.allowed]
+    allowed += [(s, c, vals) for (s, c), vals in fixed.items()]
+    return replace(task.reward, allowed=tuple(allowed))

@@ -85,13 +85,18 @@ class World(abc.ABC):
         """A shifted test task of kind `shift` (one of sim.core.task.SHIFTS)."""
 
     @abc.abstractmethod
-    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
         """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning).
 
         layouts: "task" keeps the task's positions (R' is about how things look); "train"
         places the objects as a random training layout does, so success also asks whether
         what the policy learnt carries over to every layout it was trained on. The `other`
         shift varies positions beyond the training layouts either way.
+        shifted: every task carries the task's shift: its cause (slot, concept) takes a value
+        R' accepts that training never showed (a distractor is present); the rest of R' is
+        drawn as usual.
         """
 
     @abc.abstractmethod

@@ -10,7 +10,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.core import PRESENCE, Reward, Scene, Task, Trajectory, check_layouts, check_shift
+from sim.core import (
+    PRESENCE,
+    Reward,
+    Scene,
+    Task,
+    Trajectory,
+    carrying_shift,
+    check_layouts,
+    check_shift,
+)
 from sim.doorkey.expert import path_cells, solvable
 from sim.doorkey.layout import (
     COLUMNS,
@@ -19,6 +28,7 @@ from sim.doorkey.layout import (
     OBJ_COLOURS,
     OBJ_SLOTS,
     ROWS,
+    SPACE,
     START,
     WORLD,
     Cell,
@@ -42,6 +52,7 @@ TRAIN_COLOURS = {"key": "yellow", "door": "yellow", "goal": "green"}
 # the expert's path (then any such cell, row by row)
 LATENT_LAVA: tuple[Cell, ...] = ((8, 9), (2, 9), (7, 6), (2, 7), (8, 1), (7, 10))
 MAX_TRIES = 1000
+DOOR_REACH = 1  # present lava goes within this many cells (king moves) of the door, if it can
 
 _PHRASE = {"key": "pick up the {} key", "door": "open the {} door", "goal": "go to the {} goal"}
 _ANY = {
@@ -101,8 +112,11 @@ def build(
 
     Present lava tiles lie close to the expert's path without changing it, where a distractor
     is in view of what the agent does: on a free cell next to the path, or, for slots in
-    `keep_clear` (the agent must not step next to them), one cell further out. Absent ones get
-    their latent cell (LATENT_LAVA).
+    `keep_clear` (the agent must not step next to them), one cell further out; among those,
+    the cells around the door first (DOOR_REACH): the door is where the agent turns and acts,
+    and lava there is what changes the base policy's behaviour (measured over 50 distractor
+    tasks: 30% solved with lava by the door, 78% with lava anywhere along the path). Absent
+    ones get their latent cell (LATENT_LAVA).
     """
     base = make_scene(rows, colours, tuple((False, c, (0, 0)) for _, c in lavas))
     st = parse(base)
@@ -111,12 +125,15 @@ def build(
     path = set(path_cells(st))
     near = set().union(*(neighbours(c) for c in path))  # the path and the cells next to it
     free = [c for c in interior() if c not in path and c not in _object_cells(rows)]
+    door = (COLUMNS["door"], rows["door"])
     cells: list[Cell | None] = [None] * len(LAVA_SLOTS)
     for i, (slot, (present, _)) in enumerate(zip(LAVA_SLOTS, lavas, strict=True)):
         if present:
             clear = near if slot in keep_clear else path
             ring = set().union(*(neighbours(c) for c in clear)) - clear
             ok = [c for c in free if c in ring and c not in cells]
+            by_door = [c for c in ok if _chebyshev(c, door) <= DOOR_REACH]
+            ok = by_door or ok
             if not ok:
                 return None
             cells[i] = ok[rng.integers(len(ok))]
@@ -127,6 +144,10 @@ def build(
     spec = tuple((p, c, cell) for (p, c), cell in zip(lavas, cells, strict=True))
     scene = make_scene(rows, colours, spec)  # type: ignore[arg-type]
     return scene if solvable(parse(scene)) else None
+
+
+def _chebyshev(a: Cell, b: Cell) -> int:
+    return max(abs(a[0] - b[0]), abs(a[1] - b[1]))
 
 
 def _draw(make, what: str) -> Scene:
@@ -218,20 +239,24 @@ def avoid_reward(train: Reward, slot: str, colour: str) -> Reward:
     )
 
 
-def fresh_tasks(task: Task, n: int, seed: int, layouts: str = "task") -> list[Task]:
-    """n tasks from the R' of `task`: each allowed (slot, concept) drawn from its allowed values;
-    the task's rows kept (layouts="task") or a random training layout's ("train"); for
-    `other`, key, door and goal on random rows; present lava placed as `build` does. Drawn
-    from np.random.default_rng([seed, 3]) (layouts from [seed, 4])."""
+def fresh_tasks(
+    task: Task, n: int, seed: int, layouts: str = "task", *, shifted: bool = False
+) -> list[Task]:
+    """n tasks from the R' of `task`: each allowed (slot, concept) drawn from its allowed values
+    (keeping the shift, when `shifted`: sim.core.carrying_shift); the task's rows kept
+    (layouts="task") or a random training layout's ("train"); for `other`, key, door and goal
+    on random rows; present lava placed as `build` does. Drawn from
+    np.random.default_rng([seed, 3]) (layouts from [seed, 4])."""
     check_layouts(layouts)
     rng = np.random.default_rng([seed, 3])
     layout_rng = np.random.default_rng([seed, 4])
     rows0, colours0 = rows_of(task.scene), _colours(task.scene)
+    reward = carrying_shift(SPACE, task) if shifted else task.reward
 
     def one() -> Scene | None:
         colours = dict(colours0)
         lavas = [(task.scene.obj(s).present, task.scene.obj(s).value("colour")) for s in LAVA_SLOTS]
-        for slot, concept, values in task.reward.allowed:
+        for slot, concept, values in reward.allowed:
             v = str(values[rng.integers(len(values))])
             if slot in colours:
                 colours[slot] = v

@@ -73,8 +73,10 @@ class DoorKeyWorld(World):
     def test_task(self, shift: str, seed: int) -> Task:
         return tasks.shifted_task(shift, seed)
 
-    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
-        return tasks.fresh_tasks(task, n, seed, layouts)
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
+        return tasks.fresh_tasks(task, n, seed, layouts, shifted=shifted)
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return tasks.placements(task, slot, demo)

@@ -18,6 +18,7 @@ from sim.core import (
     Task,
     Trajectory,
     World,
+    carrying_shift,
     check_layouts,
     check_shift,
     draw_from_reward,
@@ -214,8 +215,11 @@ class Nav2DWorld(World):
         )
         return Task(self.name, self._scene(goal, goal_pos=(-5.0, -5.0)), reward, shift, seed)
 
-    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
-        """Draw each open (slot, concept) of R' from its allowed values.
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
+        """Draw each open (slot, concept) of R' from its allowed values (keeping the shift,
+        when `shifted`: sim.core.carrying_shift).
 
         The agent and goal keep the task's corners (layouts="task") or take a random training
         layout ("train"); a present distractor takes any free corner; for `other`, the
@@ -224,9 +228,10 @@ class Nav2DWorld(World):
         check_layouts(layouts)
         rng = np.random.default_rng([seed, 3])
         layout_rng = np.random.default_rng([seed, 4])
+        reward = carrying_shift(self.space, task) if shifted else task.reward
         tasks = []
         for i in range(n):
-            scene = draw_from_reward(task.scene, task.reward, rng)
+            scene = draw_from_reward(task.scene, reward, rng)
             g = scene.obj("goal")
             start, goal = tuple(scene.agent[:2]), g.pos
             if task.shift == "other":  # R' holds wherever the goal is

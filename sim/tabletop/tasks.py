@@ -252,17 +252,21 @@ def _area_of(obj: Obj) -> str:
     raise ValueError(f"{obj.slot} is not at an area centre: {obj.pos[:2]}")
 
 
-def fresh_tasks(task: Task, n: int, seed: int, layouts: str = "task") -> list[Task]:
-    """n tasks drawn from R': each open (slot, concept) from its allowed values; the object
-    and goal in the task's areas (layouts="task") or a random training layout's ("train");
-    present distractors in random free areas; for `other`, the object and goal in random
-    areas."""
+def fresh_tasks(
+    task: Task, n: int, seed: int, layouts: str = "task", *, draw: Reward | None = None
+) -> list[Task]:
+    """n tasks drawn from R' (or from `draw`, a narrower reward such as
+    sim.core.carrying_shift's): each open (slot, concept) from its allowed values; the
+    object and goal in the task's areas (layouts="task") or a random training layout's
+    ("train"); present distractors in random free areas; for `other`, the object and goal in
+    random areas."""
     check_layouts(layouts)
     rng = np.random.default_rng([seed, 3])
     layout_rng = np.random.default_rng([seed, 4])
+    reward = draw or task.reward
     out = []
     for i in range(n):
-        scene = draw_from_reward(task.scene, task.reward, rng)
+        scene = draw_from_reward(task.scene, reward, rng)
         areas = list(AREAS)
         if task.shift == "other":
             order = rng.permutation(len(areas))

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Reward, Scene, Task, Trajectory, UserError, World
+from sim.core import Reward, Scene, Task, Trajectory, UserError, World, carrying_shift
 from sim.tabletop import tasks as TK
 from sim.tabletop.colours import ALL_COLOURS, DEFAULT_COLOURS
 
@@ -117,8 +117,11 @@ class TabletopWorld(World):
     def test_task(self, shift: str, seed: int) -> Task:
         return TK.test_task(shift, seed, self.colours)
 
-    def fresh_tasks(self, task: Task, n: int, seed: int, *, layouts: str = "task") -> list[Task]:
-        return TK.fresh_tasks(task, n, seed, layouts)
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
+        draw = carrying_shift(self.space, task) if shifted else None
+        return TK.fresh_tasks(task, n, seed, layouts, draw=draw)
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return TK.placements(task, slot, demo)
