@@ -1,13 +1,15 @@
-"""Putting a run together: world, base policy, failing task, user, recorder."""
+"""`dfa run` and `dfa train` put together: world, base policy, failing task, user, recording."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from tqdm import tqdm
 
-from dfa_viz.loop import LoopReport, run_loop
-from dfa_viz.recording import Recorder
+from dfa_viz.configs import RunArgs
+from dfa_viz.loop import RunRecord, run_loop
+from dfa_viz.recording import write_recording
 from dfa_viz.users import SimulatedUser
 from policy import Policy, base_policy, failing_test_task, load_policy
 from policy.base import base_folder
@@ -79,58 +81,61 @@ def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path
     return base_folder(world, seed=seed), rate
 
 
-def run_once(
-    world_name: str,
-    shift: str,
-    seed: int,
-    *,
-    accuracy: float = 1.0,
-    labels: tuple[str, ...] = (),
-    policy_dir: Path | None = None,
-    demo_path: Path | None = None,
-    max_size: int = 2,
-    out: Path = Path("recordings"),
-    progress: bool = True,
-) -> LoopReport:
-    """The whole loop once, recorded to out/<world>-<shift>-seed<seed>.rrd."""
-    world = get_world(world_name)
-    check_shift(shift)
-    check_seed(seed)
-    check_out(out)
-    if not 1 <= max_size <= MAX_EDIT_SIZE:
+def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
+    """The whole loop once, recorded to OUT/<world>-<shift>-seed<seed>.rrd (the file is
+    replaced only by a run that completes)."""
+    world = get_world(args.world)
+    check_shift(args.shift)
+    check_seed(args.seed)
+    check_out(args.out)
+    args.adapt.check()
+    if not 1 <= args.max_size <= MAX_EDIT_SIZE:
         raise UserError(
-            f"--max-size must be from 1 to {MAX_EDIT_SIZE} concept changes, not {max_size}"
+            f"--max-size must be from 1 to {MAX_EDIT_SIZE} concept changes, not {args.max_size}"
         )
-    if not 0.0 <= accuracy <= 1.0:
-        raise UserError(f"accuracy is a probability in [0, 1], not {accuracy}")
-    overrides = parse_labels(world, labels)
-    policy: Policy = load_policy(policy_dir, world=world) if policy_dir else base_policy(world)
-    task, _ = failing_test_task(world, policy, shift, seed)
-    demo = load_demo(world, task, demo_path) if demo_path is not None else None
-    user = SimulatedUser(world, accuracy=accuracy, seed=seed, overrides=overrides, demo=demo)
-    path = out / f"{world.name}-{shift}-seed{seed}.rrd"
-    bars: dict[int, tqdm] = {}
+    if not 0.0 <= args.accuracy <= 1.0:
+        raise UserError(f"accuracy is a probability in [0, 1], not {args.accuracy}")
+    overrides = parse_labels(world, args.label)
+    policy: Policy = (
+        load_policy(args.policy, world=world) if args.policy is not None else base_policy(world)
+    )
+    task, _ = failing_test_task(world, policy, args.shift, args.seed)
+    demo = load_demo(world, task, args.demo) if args.demo is not None else None
+    user = SimulatedUser(
+        world, accuracy=args.accuracy, seed=args.seed, overrides=overrides, demo=demo
+    )
+    bars: dict[str, tqdm] = {}
 
     def on_progress(size: int, done: int, total: int) -> None:
-        if not progress:
-            return
-        bar = bars.setdefault(size, tqdm(total=total, desc=f"search, size {size}", leave=False))
-        bar.update(done - bar.n)
+        if progress:
+            bar = bars.setdefault(
+                f"s{size}", tqdm(total=total, desc=f"search, size {size}", leave=False)
+            )
+            bar.update(done - bar.n)
+
+    def on_loss(step: int, loss: float) -> None:
+        if progress:
+            bar = bars.setdefault(
+                "ft", tqdm(total=args.adapt.train_config(0).steps, desc="finetuning", leave=False)
+            )
+            bar.update(1)
 
     try:
-        with Recorder(path, world, task) as recorder:  # in place only once the run completes
-            report = run_loop(
-                world,
-                policy,
-                task,
-                user,
-                search_config=SearchConfig.for_world(world, max_size=max_size),
-                seed=seed,
-                observer=recorder,
-                on_progress=on_progress,
-            )
+        record = run_loop(
+            world,
+            policy,
+            task,
+            user,
+            seed=args.seed,
+            search=SearchConfig.for_world(world, max_size=args.max_size),
+            config=args.adapt,
+            on_progress=on_progress,
+            on_loss=on_loss,
+        )
     finally:
         for bar in bars.values():
             bar.close()
-    report.recording = str(path)
-    return report
+    path = args.out / f"{world.name}-{args.shift}-seed{args.seed}.rrd"
+    record = replace(record, recording=str(path))
+    write_recording(path, world, record)
+    return record

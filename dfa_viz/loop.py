@@ -1,70 +1,290 @@
-"""The DFA loop (the paper's Algorithm 1): diagnose, take feedback, adapt."""
+"""The DFA loop (the paper's Algorithm 1), written once: each step a function over values, and
+one record of a run that each step returns a new copy of.
+
+    start         the base policy rolled out on the test task            -> RunRecord
+    judged        the user says whether that rollout failed
+    demonstrated  the user's demonstration (refused unless it succeeds under R')
+    diagnose      the counterfactual search and the counterfactual rollouts -> Diagnosis
+    (feedback)    the user marks each edited concept TI or TR              -> Feedback
+    adapt         variants over the TI concepts, a finetuned copy          -> Adaptation
+    evaluate      both policies on fresh tasks, on the shift and overall   -> Evaluation
+
+`dfa run` (run_loop below), the page's jobs (dfa_viz.app.jobs) and the finetuning experiment's
+runner (dfa_viz.experiment.runner) compose these steps; none re-implements one. The recorder
+writes a run's .rrd from its RunRecord, the page's session persists it as events, and
+`dfa run --json` prints `RunRecord.to_json()`.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
+from dfa_viz.configs import AdaptConfig
 from dfa_viz.users import User
-from policy import Policy, augment, evaluate, finetune
-from policy.evaluate import N_EVAL
-from policy.train import FINETUNE, TrainConfig
-from search import Candidate, SearchConfig, SearchResult, counterfactual_search
-from sim.core import EMPTY, Feedback, Task, Trajectory, World, require_success
+from policy import Policy, finetune, training_demos
+from policy.evaluate import N_EVAL, Score, score
+from policy.variants import fill_budget, from_feedback, render, sources, variants
+from search import SearchConfig, SearchResult, counterfactual_search
+from sim.core import EMPTY, Edit, Feedback, Label, Task, Trajectory, World, require_success
+
+MAX_TIES = 12  # counterfactual rollouts prepared for selection (the search may return more)
+ProgressCallback = Callable[[int, int, int], None]  # (size, done, total) of the search
+LossCallback = Callable[[int, float], None]  # (step, loss) while finetuning
 
 
-class LoopObserver(Protocol):
-    """What the recorder and the page subscribe to; every method is optional to act on."""
+@dataclass(frozen=True)
+class Diagnosis:
+    """The counterfactual search's answer and the policy's rollouts from its minimal edits."""
 
-    def on_rollout(self, name: str, traj: Trajectory) -> None: ...
-    def on_candidate(self, index: int, cand: Candidate) -> None: ...
-    def on_search(self, result: SearchResult, counterfactual: Trajectory | None) -> None: ...
-    def on_feedback(self, feedback: Feedback) -> None: ...
-    def on_augmented(self, trajectories: list[Trajectory]) -> None: ...
-    def on_loss(self, step: int, loss: float) -> None: ...
-    def on_evaluation(self, before: float, after: float) -> None: ...
+    result: SearchResult
+    counterfactuals: tuple[Trajectory, ...]
+    """The policy from each minimal edit's scene (the first MAX_TIES), in the result's order."""
+    tie: int = 0
+    """The minimal edit the user looks at (and labels)."""
+
+    @property
+    def edit(self) -> Edit | None:
+        if not self.result.found:
+            return None
+        return self.result.counterfactuals[self.tie].edit
+
+    @property
+    def counterfactual(self) -> Trajectory | None:
+        if self.edit is None or self.tie >= len(self.counterfactuals):
+            return None
+        return self.counterfactuals[self.tie]
+
+    def chosen(self) -> SearchResult:
+        """The result with the chosen tie ranked first (what the user looked at)."""
+        cands = self.result.counterfactuals
+        if not cands or self.tie == 0:
+            return self.result
+        order = (cands[self.tie], *cands[: self.tie], *cands[self.tie + 1 :])
+        return dataclasses.replace(self.result, counterfactuals=order)
 
 
-@dataclass
-class LoopReport:
-    """Everything one pass of the loop produced."""
+@dataclass(frozen=True)
+class Adaptation:
+    """What adapting produced."""
+
+    feedback: Feedback
+    augmented: tuple[Trajectory, ...]
+    """The distinct variants finetuned on beside the demonstration."""
+    budget: int
+    losses: tuple[float, ...]
+    rollout: Trajectory
+    """The finetuned policy on the test task."""
+    policy: Policy | None = None
+    """The finetuned policy (None when read back from a session)."""
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Both policies on the same fresh tasks."""
+
+    before: Score
+    after: Score
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """One run of the loop on one test task, as far as it got."""
 
     world: str
+    shift: str
     seed: int
+    """The seed the run was asked for (the test task's own seed is task.seed)."""
     task: Task
-    failed: bool
     rollout: Trajectory
+    """The base policy on the test task."""
+    failed: bool | None = None
+    """The user's judgement of that rollout (None: not judged yet)."""
     demo: Trajectory | None = None
-    search: SearchResult | None = None
-    counterfactual: Trajectory | None = None
+    demo_source: str = ""
+    diagnosis: Diagnosis | None = None
     feedback: Feedback = field(default_factory=Feedback)
-    n_augmented: int = 0
-    losses: list[float] = field(default_factory=list)
-    success_before: float | None = None
-    success_after: float | None = None
-    finetuned: Policy | None = None
+    """The labels given so far (all of them once adapted)."""
+    adaptation: Adaptation | None = None
+    evaluation: Evaluation | None = None
     recording: str | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    @property
+    def stage(self) -> str:
+        """judge, solved, demonstrate, diagnose, feedback or adapted."""
+        if self.failed is None:
+            return "judge"
+        if not self.failed:
+            return "solved"
+        if self.demo is None:
+            return "demonstrate"
+        if self.diagnosis is None:
+            return "diagnose"
+        return "feedback" if self.adaptation is None else "adapted"
+
+    @property
+    def edit(self) -> Edit | None:
+        return None if self.diagnosis is None else self.diagnosis.edit
+
+    def label(self, slot: str, concept: str) -> Label | None:
+        return next(
+            (lab for lab in self.feedback.labels if (lab.slot, lab.concept) == (slot, concept)),
+            None,
+        )
+
+    def unmarked(self) -> list[str]:
+        """The edited concepts not labelled yet, as slot.concept."""
+        edit = self.edit
+        changes = edit.ordered if edit is not None else ()
+        return [f"{c.slot}.{c.concept}" for c in changes if self.label(c.slot, c.concept) is None]
+
+    def with_label(self, label: Label) -> RunRecord:
+        """The record with `label` given (replacing an earlier one for its concept); labels
+        stay in the order of the edit's changes, and only the edit's concepts are kept."""
+        labels = {(lab.slot, lab.concept): lab for lab in self.feedback.labels}
+        labels[(label.slot, label.concept)] = label
+        return self.keeping_labels(labels)
+
+    def keeping_labels(self, labels: dict[tuple[str, str], Label]) -> RunRecord:
+        """The record with those of `labels` that the chosen edit changes, in its order."""
+        edit = self.edit
+        order = [(c.slot, c.concept) for c in edit.ordered] if edit is not None else []
+        kept = tuple(labels[k] for k in order if k in labels)
+        return dataclasses.replace(self, feedback=Feedback(kept))
+
+    def to_json(self) -> dict[str, Any]:
+        """The run as `dfa run --json` prints it (strict JSON: no NaN)."""
+        d = self.diagnosis
+        ad, ev = self.adaptation, self.evaluation
         return {
             "world": self.world,
-            "shift": self.task.shift,
+            "shift": self.shift,
             "seed": self.seed,
             "task_seed": self.task.seed,
             "instruction": self.task.reward.instruction,
             "failed": self.failed,
-            "counterfactual": [c.edit.to_list() for c in self.search.counterfactuals]
-            if self.search
-            else [],
-            "candidates_tried": len(self.search.tried) if self.search else 0,
+            "counterfactual": [c.edit.to_list() for c in d.chosen().counterfactuals] if d else [],
+            "candidates_tried": len(d.result.tried) if d else 0,
+            "search_complete": d.result.complete if d else None,
             "feedback": self.feedback.to_list(),
-            "augmented": self.n_augmented,
-            "final_loss": self.losses[-1] if self.losses else None,
-            "success_before": self.success_before,
-            "success_after": self.success_after,
+            "budget": ad.budget if ad else None,
+            "augmented": len(ad.augmented) if ad else 0,
+            "final_loss": ad.losses[-1] if ad and ad.losses else None,
+            "success_before": ev.before.on_shift if ev else None,
+            "success_after": ev.after.on_shift if ev else None,
+            "success_all_before": ev.before.on_all if ev else None,
+            "success_all_after": ev.after.on_all if ev else None,
             "recording": self.recording,
         }
+
+
+# -- the steps ----------------------------------------------------------------------------------
+def start(world: World, policy: Policy, task: Task, *, shift: str, seed: int) -> RunRecord:
+    """The base policy rolled out on the test task."""
+    return RunRecord(world.name, shift, seed, task, world.rollout(task, policy))
+
+
+def judged(record: RunRecord, failed: bool) -> RunRecord:
+    return dataclasses.replace(record, failed=failed)
+
+
+def demonstrated(record: RunRecord, demo: Trajectory, source: str = "expert") -> RunRecord:
+    """The record with the user's demonstration; one that does not succeed is refused."""
+    require_success(record.task, demo, source=f"the {source} demonstration")
+    return dataclasses.replace(record, demo=demo, demo_source=source)
+
+
+def diagnose(
+    world: World,
+    policy: Policy,
+    task: Task,
+    demo: Trajectory,
+    *,
+    config: SearchConfig,
+    on_progress: ProgressCallback | None = None,
+) -> Diagnosis:
+    """The smallest concept edits after which the policy follows the demonstration, and the
+    policy's rollouts from them (one batch)."""
+    result = counterfactual_search(
+        world, policy, task.scene, demo, config=config, on_progress=on_progress
+    )
+    return Diagnosis(result, tuple(counterfactual_rollouts(world, policy, task, result)))
+
+
+def counterfactual_rollouts(
+    world: World, policy: Policy, task: Task, result: SearchResult
+) -> list[Trajectory]:
+    """The policy's rollout from each minimal edit's scene (the first MAX_TIES), in one batch."""
+    cands = result.counterfactuals[:MAX_TIES]
+    if not cands:
+        return []
+    scenes = [world.apply(task.scene, c.edit) for c in cands]
+    return world.rollout_batch([task] * len(cands), policy, scenes=scenes)
+
+
+def augmentation(
+    world: World,
+    task: Task,
+    demo: Trajectory,
+    feedback: Feedback,
+    *,
+    config: AdaptConfig,
+    known: Sequence[Trajectory],
+    seed: int,
+) -> list[Trajectory]:
+    """The budget's variants over the TI labels: budget - 1 of them at most, from the sources
+    the config names."""
+    what = from_feedback(world, feedback)
+    if what is None:
+        return []
+    srcs = sources(task, demo, known if config.finetuning.sources == "all" else ())
+    chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=task.scene)
+    return render(world, srcs, chosen)
+
+
+def adapt(
+    world: World,
+    base: Policy,
+    task: Task,
+    demo: Trajectory,
+    feedback: Feedback,
+    *,
+    config: AdaptConfig,
+    seed: int,
+    known: Sequence[Trajectory] | None = None,
+    augmented: Sequence[Trajectory] | None = None,
+    on_loss: LossCallback | None = None,
+) -> Adaptation:
+    """Finetune a copy of `base` on exactly `config.budget` trajectories: the demonstration and
+    its variants over the TI labels (or the `augmented` trajectories given), with the base
+    policy's training demonstrations (`known`, made here when None) replayed in every batch."""
+    if known is None:
+        known = training_demos(world)
+    if augmented is None:
+        augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
+    tuned, losses = finetune(
+        world,
+        base,
+        fill_budget(demo, augmented, config.budget),
+        config=config.train_config(seed),
+        replay=known if config.finetuning.replay_share > 0 else (),
+        replay_share=config.finetuning.replay_share,
+        on_loss=on_loss,
+    )
+    return Adaptation(
+        feedback, tuple(augmented), config.budget, tuple(losses), world.rollout(task, tuned), tuned
+    )
+
+
+def evaluate(
+    world: World, base: Policy, tuned: Policy, task: Task, *, n: int = N_EVAL, seed: int
+) -> Evaluation:
+    """Both policies on the same fresh tasks: carrying the shift, and from all of R'."""
+    return Evaluation(
+        score(world, base, task, n=n, seed=seed), score(world, tuned, task, n=n, seed=seed)
+    )
 
 
 def run_loop(
@@ -73,67 +293,42 @@ def run_loop(
     task: Task,
     user: User,
     *,
-    search_config: SearchConfig = SearchConfig(),
-    train_config: TrainConfig = FINETUNE,
-    n_eval: int = N_EVAL,
     seed: int = 0,
-    observer: LoopObserver | None = None,
-    on_progress: Callable[[int, int, int], None] | None = None,
-) -> LoopReport:
-    """One pass of Algorithm 1 on `task` with `user` answering."""
-    rollout = world.rollout(task, policy)
-    if observer:
-        observer.on_rollout("failed", rollout)
-    report = LoopReport(world.name, seed, task, user.judge(task, rollout), rollout)
-    if not report.failed:
-        return report
-
-    # Diagnosis: the user's demonstration, then the smallest edit that explains the failure.
-    demo = user.demonstrate(task)
-    require_success(task, demo)
-    report.demo = demo
-    if observer:
-        observer.on_rollout("demonstration", demo)
-    counter = iter(range(10**9))
-    result = counterfactual_search(
+    search: SearchConfig | None = None,
+    config: AdaptConfig = AdaptConfig(),
+    known: Sequence[Trajectory] | None = None,
+    on_progress: ProgressCallback | None = None,
+    on_loss: LossCallback | None = None,
+) -> RunRecord:
+    """One pass of Algorithm 1 on `task` with `user` answering; the record of everything."""
+    record = start(world, policy, task, shift=task.shift, seed=seed)
+    record = judged(record, user.judge(task, record.rollout))
+    if not record.failed:
+        return record
+    record = demonstrated(record, user.demonstrate(task), user.source)
+    diagnosis = diagnose(
         world,
         policy,
-        task.scene,
-        demo,
-        config=search_config,
-        on_candidate=(lambda c: observer.on_candidate(next(counter), c)) if observer else None,
+        task,
+        record.demo,
+        config=search or SearchConfig.for_world(world),
         on_progress=on_progress,
     )
-    report.search = result
-    if result.best is not None:
-        edited = world.apply(task.scene, result.best.edit)
-        report.counterfactual = world.rollout(task, policy, scene=edited)
-    if observer:
-        observer.on_search(result, report.counterfactual)
-
-    # Feedback: each edited concept marked TI or TR; augment over the TI ones.
-    finetune_set = [demo]
-    report.feedback = user.label(task, result.best.edit if result.best is not None else EMPTY)
-    if result.best is not None:
-        augmented = augment(world, task, demo, report.feedback, seed=seed)
-        report.n_augmented = len(augmented)
-        finetune_set += augmented
-        if observer:
-            observer.on_feedback(report.feedback)
-            observer.on_augmented(augmented)
-
-    # Adaptation: finetune a copy, evaluate both on fresh tasks from R'.
-    tuned, losses = finetune(
+    record = dataclasses.replace(record, diagnosis=diagnosis)
+    feedback = user.label(task, diagnosis.edit if diagnosis.edit is not None else EMPTY)
+    record = dataclasses.replace(record, feedback=feedback)
+    adaptation = adapt(
         world,
         policy,
-        finetune_set,
-        config=TrainConfig(train_config.steps, train_config.batch_size, train_config.lr, seed),
-        on_loss=observer.on_loss if observer else None,
+        task,
+        record.demo,
+        feedback,
+        config=config,
+        seed=seed,
+        known=known,
+        on_loss=on_loss,
     )
-    report.finetuned, report.losses = tuned, losses
-    report.success_before = evaluate(world, policy, task, n=n_eval, seed=seed)
-    report.success_after = evaluate(world, tuned, task, n=n_eval, seed=seed)
-    if observer:
-        observer.on_evaluation(report.success_before, report.success_after)
-        observer.on_rollout("finetuned", world.rollout(task, tuned))
-    return report
+    evaluation = evaluate(
+        world, policy, adaptation.policy, task, n=config.finetuning.n_eval, seed=seed
+    )
+    return dataclasses.replace(record, adaptation=adaptation, evaluation=evaluation)

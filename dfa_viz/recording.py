@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import uuid
+from collections.abc import Sequence
 from datetime import timedelta
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from dfa_viz.loop import Evaluation, RunRecord
 from search import Candidate, SearchResult
 from sim.core import Edit, Feedback, Task, Trajectory, World, files
 
@@ -132,9 +134,10 @@ def edit_table(world: World, scene, edit: Edit) -> str:
 
 
 class Recorder:
-    """Writes one run to `path` through an explicit RecordingStream (no global stream).
+    """Writes one run to an .rrd through an explicit RecordingStream (no global stream).
 
-    Implements the loop's observer methods; call `close()` to write the footer.
+    `write_recording(path, world, record)` is the way in: it logs every part of a RunRecord in
+    the loop's order and moves the file into place once it is whole.
     """
 
     def __init__(self, path: str | Path, world: World, task: Task) -> None:
@@ -153,7 +156,6 @@ class Recorder:
             ),
         )
         self._demo: Trajectory | None = None
-        self._candidates: list[Candidate] = []
 
     # -- helpers ------------------------------------------------------------------------------
     def _image(self, frame: np.ndarray):
@@ -176,8 +178,10 @@ class Recorder:
             return (a != b).astype(np.float64)
         return np.abs(a - b).sum(axis=1).astype(np.float64)  # (T,)
 
-    # -- observer -----------------------------------------------------------------------------
-    def on_rollout(self, name: str, traj: Trajectory) -> None:
+    # -- the parts of a run -------------------------------------------------------------------
+    def rollout(self, name: str, traj: Trajectory) -> None:
+        """Frames, per-dimension actions and success of one rollout on the `step` timeline;
+        its action distance to the demonstration once that is logged."""
         self.rec.reset_time()
         for t, frame in enumerate(traj.observations):
             self.rec.set_time("step", sequence=t)
@@ -204,12 +208,9 @@ class Recorder:
                 static=True,
             )
 
-    def on_candidate(self, index: int, cand: Candidate) -> None:
-        """Collected; written when the search ends (the size of the search decides how)."""
-        self._candidates.append(cand)
-
-    def _log_candidates(self) -> None:
-        cands, self._candidates = self._candidates, []
+    def candidates(self, cands: Sequence[Candidate]) -> None:
+        """Every candidate the search tried (the size of the search decides how)."""
+        self.rec.reset_time()
         if len(cands) <= DETAIL_LIMIT:
             for i, cand in enumerate(cands):
                 self._log_candidate(i, cand)
@@ -251,9 +252,9 @@ class Recorder:
         self.rec.log(entity, rr.SeriesLines(names=str(cand.edit), colors=[colour]), static=True)
         self._series(entity, np.arange(len(cand.distances)), cand.distances.astype(np.float64))
 
-    def on_search(self, result: SearchResult, counterfactual: Trajectory | None) -> None:
+    def search(self, result: SearchResult) -> None:
+        """The search's summary, the chosen edit as a before -> after table, and Phi of both."""
         self.rec.reset_time()
-        self._log_candidates()
         self.rec.log("search/summary", rr.TextDocument(result.summary()), static=True)
         if result.best is None:
             text = (
@@ -278,10 +279,8 @@ class Recorder:
         after = space.encode(self.world.apply(self.task.scene, result.best.edit)).astype(np.float64)
         self.rec.log("edit/phi_before", rr.BarChart(before), static=True)
         self.rec.log("edit/phi_after", rr.BarChart(after), static=True)
-        if counterfactual is not None:
-            self.on_rollout("counterfactual", counterfactual)
 
-    def on_feedback(self, feedback: Feedback) -> None:
+    def feedback(self, feedback: Feedback) -> None:
         rows = ["| slot | concept | label | acceptable |", "|---|---|---|---|"]
         for lab in feedback.labels:
             kind = "TR" if lab.relevant else "TI"
@@ -290,30 +289,39 @@ class Recorder:
             "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
         )
 
-    def on_augmented(self, trajectories: list[Trajectory]) -> None:
+    def augmented(self, trajectories: Sequence[Trajectory]) -> None:
         self.rec.reset_time()
         for i, traj in enumerate(trajectories):
             for t, frame in enumerate(traj.observations):
                 self.rec.set_time("step", sequence=t)
                 self.rec.log(f"augmented/a{i:03d}/frame", self._image(frame))
 
-    def on_loss(self, step: int, loss: float) -> None:
-        if step == 0:
-            self.rec.reset_time()
-        self.rec.set_time("finetune_step", sequence=step)
-        self.rec.log("finetune/loss", rr.Scalars(loss))
-
-    def on_evaluation(self, before: float, after: float) -> None:
+    def losses(self, losses: Sequence[float]) -> None:
         self.rec.reset_time()
-        self.rec.log("evaluation/success", rr.BarChart(np.array([before, after])), static=True)
-        self.rec.log("evaluation/values", rr.AnyValues(before=before, after=after), static=True)
+        self.rec.send_columns(
+            "finetune/loss",
+            indexes=[rr.TimeColumn("finetune_step", sequence=np.arange(len(losses)))],
+            columns=rr.Scalars.columns(scalars=np.asarray(losses, np.float64)),
+        )
+
+    def evaluation(self, ev: Evaluation) -> None:
+        self.rec.reset_time()
+        values = [ev.before.on_shift, ev.after.on_shift, ev.before.on_all, ev.after.on_all]
+        self.rec.log("evaluation/success", rr.BarChart(np.array(values)), static=True)
+        self.rec.log(
+            "evaluation/values",
+            rr.AnyValues(
+                before=ev.before.on_shift,
+                after=ev.after.on_shift,
+                all_before=ev.before.on_all,
+                all_after=ev.after.on_all,
+            ),
+            static=True,
+        )
 
     def close(self, *, keep: bool = True) -> None:
         """Finish the file and move it into place; `keep=False` (a run that failed) discards
         it and leaves an earlier recording at `path` untouched."""
-        if keep and self._candidates:
-            self.rec.reset_time()
-            self._log_candidates()
         self.file.close(keep=keep)
 
     def __enter__(self) -> Recorder:
@@ -321,3 +329,27 @@ class Recorder:
 
     def __exit__(self, kind, value, tb) -> None:
         self.close(keep=kind is None)
+
+
+def write_recording(path: str | Path, world: World, record: RunRecord) -> Path:
+    """Write everything a run record holds to one .rrd, in the loop's order; the file at `path`
+    is replaced only once the new one is whole."""
+    with Recorder(path, world, record.task) as rec:
+        if record.demo is not None:
+            rec.rollout("demonstration", record.demo)
+        rec.rollout("failed", record.rollout)
+        d = record.diagnosis
+        if d is not None:
+            rec.candidates(d.result.tried)
+            rec.search(d.chosen())
+            if d.counterfactual is not None:
+                rec.rollout("counterfactual", d.counterfactual)
+        ad = record.adaptation
+        if ad is not None:
+            rec.feedback(ad.feedback)
+            rec.augmented(ad.augmented)
+            rec.losses(ad.losses)
+            rec.rollout("finetuned", ad.rollout)
+        if record.evaluation is not None:
+            rec.evaluation(record.evaluation)
+    return Path(path)

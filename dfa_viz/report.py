@@ -1,25 +1,26 @@
-"""The short human-readable report `dfa run` prints."""
+"""The short human-readable report `dfa run` prints, from the run's record."""
 
 from __future__ import annotations
 
-from dfa_viz.loop import LoopReport
+from dfa_viz.loop import RunRecord
 
 
-def format_report(r: LoopReport) -> str:
+def format_report(r: RunRecord) -> str:
     t = r.task
-    lines = [f'{r.world} / {t.shift} / seed {r.seed} (task {t.seed}): "{t.reward.instruction}"']
+    lines = [f'{r.world} / {r.shift} / seed {r.seed} (task {t.seed}): "{t.reward.instruction}"']
     if not r.failed:
         lines.append("  the policy succeeded: nothing to diagnose")
         return "\n".join(lines)
     lines.append("  failed: the base policy's rollout misses what the user wants")
-    s = r.search
-    if s is None or not s.found:
-        tried = len(s.tried) if s else 0
+    d = r.diagnosis
+    if d is None or not d.result.found:
+        tried = len(d.result.tried) if d else 0
         lines.append(
             f"  counterfactual: none found in {tried} edits — "
             "the cause is outside the concept space"
         )
     else:
+        s = d.chosen()
         best, ties = s.counterfactuals[0], s.counterfactuals[1:]
         lines.append(f"  counterfactual (size {s.size}, {len(s.tried)} edits tried): {best.edit}")
         for c in ties:
@@ -27,10 +28,19 @@ def format_report(r: LoopReport) -> str:
     for lab in r.feedback.labels:
         kind = "TR" if lab.relevant else f"TI (acceptable: {', '.join(lab.acceptable)})"
         lines.append(f"  feedback: {lab.slot}.{lab.concept} is {kind}")
-    loss = f", final loss {r.losses[-1]:.4f}" if r.losses else ""
-    lines.append(f"  finetuned on 1 demonstration + {r.n_augmented} augmented{loss}")
-    lines.append(
-        f"  success on 10 fresh tasks from R': {r.success_before:.0%} -> {r.success_after:.0%}"
-    )
+    ad, ev = r.adaptation, r.evaluation
+    if ad is not None:
+        loss = f", final loss {ad.losses[-1]:.4f}" if ad.losses else ""
+        lines.append(
+            f"  finetuned on {ad.budget} trajectories: the demonstration and "
+            f"{len(ad.augmented)} variants{loss}"
+        )
+    if ev is not None:
+        n = len(ev.before.shifted)
+        lines.append(
+            f"  success on {n} fresh tasks with the shift: {ev.before.on_shift:.0%} -> "
+            f"{ev.after.on_shift:.0%} (on {len(ev.before.overall)} from all you want: "
+            f"{ev.before.on_all:.0%} -> {ev.after.on_all:.0%})"
+        )
     lines.append(f"  recording: {r.recording}")
     return "\n".join(lines)

@@ -7,11 +7,15 @@ from typing import Protocol
 
 import numpy as np
 
-from sim.core import PRESENCE, Edit, Feedback, Label, Task, Trajectory, UserError, World
+from policy.variants import acceptable_if_irrelevant
+from sim.core import Edit, Feedback, Label, Task, Trajectory, UserError, World
 
 
 class User(Protocol):
     """The person in the loop (or a stand-in): judges, demonstrates, labels."""
+
+    source: str
+    """Where this user's demonstrations come from ("expert", "file", "clicks", "keys")."""
 
     def judge(self, task: Task, rollout: Trajectory) -> bool:
         """True when the rollout failed what the user wanted."""
@@ -46,6 +50,10 @@ class SimulatedUser:
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng([self.seed, 7])
 
+    @property
+    def source(self) -> str:
+        return "expert" if self.demo is None else "file"
+
     def judge(self, task: Task, rollout: Trajectory) -> bool:
         return not rollout.success
 
@@ -79,11 +87,4 @@ class SimulatedUser:
         return Feedback(tuple(labels))
 
     def _acceptable(self, task: Task, slot: str, concept: str, relevant: bool) -> tuple[str, ...]:
-        if relevant:
-            return ()
-        allowed = task.reward.allowed_values(slot, concept)
-        if allowed and len(allowed) > 1:
-            return allowed
-        if concept == PRESENCE:
-            return ("present", "absent")
-        return self.world.space.slot(slot).concept(concept).values
+        return () if relevant else acceptable_if_irrelevant(self.world, task.reward, slot, concept)

@@ -1,28 +1,65 @@
-"""Evaluation: success rate on fresh tasks drawn from the user's intended reward R'."""
+"""Evaluation: success on fresh tasks from the user's intended reward R', on the shift and overall.
+
+The headline figure is success on fresh tasks that carry the test task's shift (every one has
+the cause that made the base policy fail, in a training layout): did adaptation fix what the
+user saw go wrong? Beside it, success on fresh tasks from all of R' (training looks included):
+did it keep what the policy could already do?
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 from policy.model import Policy
 from sim.core import Task, Trajectory, UserError, World
 
 N_EVAL = 10  # the paper's number of evaluation tasks
+LAYOUTS = "train"  # fresh tasks put the objects as a random training layout does
 
 
-def evaluate(
-    world: World,
-    policy: Policy,
-    task: Task,
-    *,
-    n: int = N_EVAL,
-    seed: int = 0,
-    layouts: str = "task",
-) -> float:
-    """Fraction of n fresh tasks from task's R' that the policy solves (rolled out in one batch).
+@dataclass(frozen=True)
+class Score:
+    """One policy's success on the fresh tasks of one test task."""
 
-    layouts: where the fresh tasks put the objects (World.fresh_tasks).
-    """
-    tasks = world.fresh_tasks(task, n, seed, layouts=layouts)
-    return sum(t.success for t in world.rollout_batch(tasks, policy)) / n
+    shifted: tuple[bool, ...]
+    """Per fresh task that carries the shift: solved?"""
+    overall: tuple[bool, ...]
+    """Per fresh task from all of R': solved?"""
+
+    @property
+    def on_shift(self) -> float:
+        """Success rate on the shift (the headline figure)."""
+        return sum(self.shifted) / len(self.shifted)
+
+    @property
+    def on_all(self) -> float:
+        """Success rate over all of R'."""
+        return sum(self.overall) / len(self.overall)
+
+    def to_json(self) -> dict:
+        return {
+            "shifted": [int(s) for s in self.shifted],
+            "overall": [int(s) for s in self.overall],
+        }
+
+    @classmethod
+    def from_json(cls, d: dict) -> Score:
+        return cls(tuple(bool(v) for v in d["shifted"]), tuple(bool(v) for v in d["overall"]))
+
+
+def fresh(world: World, task: Task, *, n: int = N_EVAL, seed: int = 0) -> tuple[list, list]:
+    """The fresh tasks a policy is scored on: (carrying the shift, from all of R')."""
+    return (
+        world.fresh_tasks(task, n, seed, layouts=LAYOUTS, shifted=True),
+        world.fresh_tasks(task, n, seed, layouts=LAYOUTS),
+    )
+
+
+def score(world: World, policy: Policy, task: Task, *, n: int = N_EVAL, seed: int = 0) -> Score:
+    """The policy rolled out on the 2n fresh tasks of `task` (one batch), judged by R'."""
+    shifted, overall = fresh(world, task, n=n, seed=seed)
+    solved = [r.success for r in world.rollout_batch([*shifted, *overall], policy)]
+    return Score(tuple(solved[:n]), tuple(solved[n:]))
 
 
 def failing_test_task(

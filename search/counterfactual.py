@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from policy.model import Policy
 from search.enumerate import combinations, count
 from search.lockstep import Candidate, rollout_lockstep
-from sim.core import Change, Scene, Trajectory, World
+from sim.core import Change, Scene, Trajectory, UserError, World
 
 # (size, candidates done, candidates in this size) -> None
 ProgressCallback = Callable[[int, int, int], None]
@@ -66,6 +66,29 @@ class SearchResult:
     @property
     def found(self) -> bool:
         return bool(self.counterfactuals)
+
+    def to_json(self) -> dict:
+        return {
+            "size": self.size,
+            "max_size": self.max_size,
+            "complete": self.complete,
+            "counterfactuals": [c.to_dict() for c in self.counterfactuals],
+            "tried": [c.to_dict() for c in self.tried],
+        }
+
+    @classmethod
+    def from_json(cls, d: dict) -> SearchResult:
+        """Read back `to_json` (UserError if malformed); `complete` defaults to True."""
+        try:
+            return cls(
+                tuple(Candidate.from_dict(c) for c in d["counterfactuals"]),
+                tuple(Candidate.from_dict(c) for c in d["tried"]),
+                d["size"],
+                d["max_size"],
+                bool(d.get("complete", True)),
+            )
+        except (KeyError, TypeError) as e:
+            raise UserError(f"malformed search result ({type(e).__name__}: {e})") from None
 
     @property
     def best(self) -> Candidate | None:

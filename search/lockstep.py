@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from policy.model import Policy, probabilities
-from sim.core import Edit, Scene, Trajectory, World
+from sim.core import Edit, Scene, Trajectory, UserError, World
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +43,23 @@ class Candidate:
             "dropped_at": self.dropped_at,
             "distances": [None if np.isnan(d) else round(float(d), 6) for d in self.distances],
         }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Candidate:
+        """Read back `to_dict` (matches: the steps before the drop; UserError if malformed)."""
+        try:
+            distances = np.array(
+                [np.nan if v is None else float(v) for v in d["distances"]], np.float32
+            )  # (T,)
+            dropped = d["dropped_at"]
+            if dropped is not None and (isinstance(dropped, bool) or not isinstance(dropped, int)):
+                raise TypeError(f"dropped_at {dropped!r} is not a step")
+            matches = ~np.isnan(distances)
+            if dropped is not None:
+                matches[int(dropped) :] = False
+            return cls(Edit.from_list(d["edit"]), distances, matches, dropped)
+        except (KeyError, TypeError, ValueError) as e:
+            raise UserError(f"malformed candidate ({type(e).__name__}: {e})") from None
 
 
 def compared_steps(world: World, demo: Trajectory) -> int:

@@ -12,7 +12,8 @@ import threading
 import numpy as np
 import viser
 
-from dfa_viz.app.state import LoopState, View
+from dfa_viz.app.state import LoopState
+from dfa_viz.app.view import View
 
 SIZE = 12.0  # plane width and height in scene units
 
@@ -36,7 +37,7 @@ class Canvas:
 
     def refresh(self, view: View, *, force: bool = False) -> None:
         """Redraw the plane when the task or the demonstration changed."""
-        run = view.run
+        run = view.record
         key = (id(run.task) if run else None, view.stage, view.demo_summary, view.version)
         with self._lock:
             if not force and self._shown is not None and key[:3] == self._shown[:3]:
@@ -83,30 +84,30 @@ class Canvas:
     def show_scenes(self, view: View, step: int) -> None:
         """Tabletop: the failed rollout's objects as meshes over the image plane at the slider's
         step, with the counterfactual's as a translucent ghost (after the diagnosis)."""
-        run = view.run
+        run = view.record
         show = self._meshes_shown(view)
-        key = (id(run.rollout), id(run.counterfactual), step) if show else None
+        cf = run.diagnosis.counterfactual if show and run.diagnosis else None
+        key = (id(run.rollout), id(cf), step) if show else None
         with self._lock:
             if key == self._meshes:
                 return
             self._meshes = key
             nodes: dict[str, object] = {}
             if show:
-                nodes = self._add_meshes(run, step)
+                nodes = self._add_meshes(run.rollout, cf, step)
             for gone in set(self._mesh_nodes) - set(nodes):
                 self._mesh_nodes[gone].remove()
             self._mesh_nodes = nodes
 
     @staticmethod
     def _meshes_shown(view: View) -> bool:
-        run = view.run
         return (
-            run is not None
-            and run.world.name == "tabletop"
+            view.world is not None
+            and view.world.name == "tabletop"
             and view.stage in ("feedback", "adapted")
         )
 
-    def _add_meshes(self, run, step: int) -> dict[str, object]:
+    def _add_meshes(self, failed, counterfactual, step: int) -> dict[str, object]:
         from sim.tabletop.meshes import shape_mesh
         from sim.tabletop.pose import object_poses
         from sim.tabletop.tasks import VIEW_HALF_M
@@ -114,8 +115,8 @@ class Canvas:
         k = SIZE / (2 * VIEW_HALF_M)  # metres -> scene units: the plane spans the camera's view
         nodes: dict[str, object] = {}
         for name, traj, opacity in (
-            ("failed", run.rollout, None),
-            ("counterfactual", run.counterfactual, 0.45),
+            ("failed", failed, None),
+            ("counterfactual", counterfactual, 0.45),
         ):
             if traj is None:
                 continue

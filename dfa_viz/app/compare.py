@@ -12,7 +12,8 @@ import numpy as np
 import viser
 
 from dfa_viz.app import frames, plots
-from dfa_viz.app.state import LoopState, View
+from dfa_viz.app.state import LoopState
+from dfa_viz.app.view import View
 
 SPEEDS = {"0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 BASE_FPS = 4.0  # frames per second at 1×
@@ -65,29 +66,30 @@ class ComparePanel:
         """New state: reset the slider range and redraw the current step."""
         with self._lock:
             self._view = view
-            run = view.run
-            if run is None:
+            rec = view.record
+            if rec is None:
                 return
-            horizon = run.world.horizon
+            horizon = view.world.horizon
             if self.slider.max != horizon:
                 self.slider.max = horizon
                 if self.slider.value > horizon:
                     self.slider.value = 0
-            ad = run.adaptation
+            ev = rec.evaluation
             self.title.content = (
-                f"**{run.world.name} · {run.shift} · seed {run.seed}** — "
-                f"“{run.task.reward.instruction}”"
+                f"**{rec.world} · {rec.shift} · seed {rec.seed}** — "
+                f"“{rec.task.reward.instruction}”"
                 + (
-                    f"  \nSuccess on 10 fresh tasks: **{ad.success_before:.0%} → "
-                    f"{ad.success_after:.0%}** after finetuning"
-                    if ad is not None
+                    f"  \nSuccess on {len(ev.before.shifted)} fresh tasks with the shift: "
+                    f"**{ev.before.on_shift:.0%} → {ev.after.on_shift:.0%}** after finetuning"
+                    if ev is not None
                     else ""
                 )
             )
             self.show(force=True)
 
     def columns(self, view: View, step: int):
-        run = view.run
+        run = view.record
+        counterfactual = run.diagnosis.counterfactual if run.diagnosis else None
         cf_missing = {
             "judge": "after your demonstration",
             "solved": "nothing to diagnose",
@@ -104,7 +106,7 @@ class ComparePanel:
             ),
             (
                 "counterfactual",
-                frames.frame_at(run.counterfactual, step),
+                frames.frame_at(counterfactual, step),
                 cf_missing,
                 CAPTION_COLOURS["counterfactual"],
             ),
@@ -124,9 +126,9 @@ class ComparePanel:
         """Draw the frames and the trace marker at the slider's step."""
         with self._lock:
             view = self._view
-            if view is None or view.run is None:
+            if view is None or view.record is None:
                 return
-            run = view.run
+            run = view.record
             step = int(self.slider.value)
             key = (view.version, step)
             if key == self._key and not force:
@@ -134,13 +136,14 @@ class ComparePanel:
             self._key = key
             image = frames.strip(
                 self.columns(view, step),
-                frame_shape=run.world.obs_shape,
-                footer=f"step {step} / {run.world.horizon}",
+                frame_shape=view.world.obs_shape,
+                footer=f"step {step} / {view.world.horizon}",
             )
-            traces = {"failed": run.rollout, "counterfactual": run.counterfactual}
+            cf = run.diagnosis.counterfactual if run.diagnosis else None
+            traces = {"failed": run.rollout, "counterfactual": cf}
             if run.adaptation is not None:
                 traces["finetuned"] = run.adaptation.rollout
-            data, series, scales = plots.distance_plot(run.world, run.demo, traces, step)
+            data, series, scales = plots.distance_plot(view.world, run.demo, traces, step)
             with self.client.atomic():
                 self.image.image = image
                 if len(self.trace.series) != len(series) or force:

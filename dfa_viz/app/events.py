@@ -1,93 +1,419 @@
-"""Applying session events to the loop state: live (after the event is on disk) and when a
-session is replayed on resume. A computed value (the task, the demonstration, the search result,
-the adaptation) is passed in live; on replay it is rebuilt from the event and its files."""
+"""Session events: one frozen dataclass per user action or finished job, and applying one to a
+run record, which returns a new record.
+
+Each event writes itself as one JSON object (`to_json`, with its "type") and reads itself back
+with every field checked (`from_json`: a UserError saying which field is wrong and what is
+accepted). The format is version 1 of the session log: sessions written before these classes
+load unchanged (fields added since are optional).
+
+Applying is pure but for what an event only names: the task is drawn again from its seed and
+the base policy rolled out, trajectory files are read back, a search's counterfactual rollouts
+are rolled out again, and a finetuning written without its scores is scored again from the
+checkpoint it saved (`Rebuild`). Live, the job that made an event passes those values in.
+"""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import dataclasses
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
-from dfa_viz.app import work
-from dfa_viz.app.demonstrate import input_for
-from dfa_viz.app.run import Run, need
-from dfa_viz.app.work import Adaptation
-from sim.core import PRESENCE, Feedback, Label, UserError, World
+from dfa_viz.loop import (
+    Adaptation,
+    AdaptConfig,
+    Diagnosis,
+    Evaluation,
+    RunRecord,
+    augmentation,
+    counterfactual_rollouts,
+    demonstrated,
+    judged,
+)
+from policy import Policy, training_demos
+from policy.evaluate import Score, score
+from search import SearchResult
+from sim import WORLDS, get_world
+from sim.core import (
+    Feedback,
+    Label,
+    Trajectory,
+    UserError,
+    World,
+    check_seed,
+    check_shift,
+)
 
-if TYPE_CHECKING:
-    from dfa_viz.app.state import LoopState
+VERSION = 1
 
 
-def apply_event(state: LoopState, ev: dict, computed=None) -> None:
-    """Change the state as event `ev` says (its preconditions checked: UserError if unmet)."""
-    kind = ev["type"]
-    if kind == "task":
-        world, task, rollout = computed or work.task_again(
-            ev["world"], ev["shift"], ev["task_seed"], state.policies
+def _world(value: str, name: str) -> str:
+    if value not in WORLDS:
+        raise UserError(f"{name}: unknown world {value!r}; accepted: {', '.join(WORLDS)}")
+    return value
+
+
+def _shift(value: str, name: str) -> str:
+    try:
+        return check_shift(value)
+    except UserError as e:
+        raise UserError(f"{name}: {e}") from None
+
+
+def _count(value: int, name: str) -> int:
+    if value < 0:
+        raise UserError(f"{name} must not be negative, got {value}")
+    return value
+
+
+def _get(d: dict, kind: str, key: str, types: tuple[type, ...], check=None, *, default=...):
+    """d[key], of one of `types` (bool apart from int) and passing `check`; `default` when
+    the key is missing and a default is given."""
+    if key not in d:
+        if default is not ...:
+            return default
+        raise UserError(f"{kind} event without {key!r}")
+    value = d[key]
+    if not isinstance(value, types) or (isinstance(value, bool) and bool not in types):
+        names = " or ".join("null" if t is type(None) else t.__name__ for t in types)
+        raise UserError(f"{kind}.{key} must be {names}, got {json.dumps(value)[:60]}")
+    return check(value, f"{kind}.{key}") if check is not None and value is not None else value
+
+
+@dataclass(frozen=True)
+class SessionStarted:
+    """The first line of a session: the format version and the world it opened on."""
+
+    TYPE: ClassVar[str] = "session"
+    world: str
+    version: int = VERSION
+
+    def to_json(self) -> dict[str, Any]:
+        return {"version": self.version, "world": self.world}
+
+    @classmethod
+    def from_json(cls, d: dict) -> SessionStarted:
+        version = _get(d, cls.TYPE, "version", (int,))
+        if version != VERSION:
+            raise UserError(f"session format version {version}; this program reads {VERSION}")
+        return cls(_get(d, cls.TYPE, "world", (str,), _world), version)
+
+
+@dataclass(frozen=True)
+class TaskLoaded:
+    """A test task was loaded: the failing task of (world, shift, seed), whose own seed is
+    task_seed."""
+
+    TYPE: ClassVar[str] = "task"
+    world: str
+    shift: str
+    seed: int
+    task_seed: int
+
+    def to_json(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, d: dict) -> TaskLoaded:
+        k = cls.TYPE
+        world, shift = _get(d, k, "world", (str,)), _get(d, k, "shift", (str,))
+        seed, task_seed = _get(d, k, "seed", (int,)), _get(d, k, "task_seed", (int,))
+        return cls(  # every type first, then the values
+            _world(world, f"{k}.world"),
+            _shift(shift, f"{k}.shift"),
+            check_seed(seed, f"{k}.seed"),
+            check_seed(task_seed, f"{k}.task_seed"),
         )
-        state.world_name = world.name
-        state.run = Run(world, ev["shift"], ev["seed"], task, rollout)
-        state.demo_input = None
-        # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session and the line of
-        # this task in its log: loading another task (or this one again) keeps this recording
-        state.recording = state.out / (
-            f"{world.name}-{ev['shift']}-seed{ev['seed']}-{state.session.folder.name}"
-            f"-task{ev['_line']}.rrd"
+
+
+@dataclass(frozen=True)
+class Judged:
+    """The user's judgement of the base policy's rollout."""
+
+    TYPE: ClassVar[str] = "judgement"
+    failed: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return {"failed": self.failed}
+
+    @classmethod
+    def from_json(cls, d: dict) -> Judged:
+        return cls(_get(d, cls.TYPE, "failed", (bool,)))
+
+
+@dataclass(frozen=True)
+class Demonstrated:
+    """The demonstration, saved as `file` in the session folder; source: how it was given."""
+
+    TYPE: ClassVar[str] = "demonstration"
+    file: str
+    source: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"file": self.file, "source": self.source}
+
+    @classmethod
+    def from_json(cls, d: dict) -> Demonstrated:
+        return cls(_get(d, cls.TYPE, "file", (str,)), _get(d, cls.TYPE, "source", (str,)))
+
+
+@dataclass(frozen=True)
+class Searched:
+    """The counterfactual search's result (every candidate tried)."""
+
+    TYPE: ClassVar[str] = "search"
+    result: SearchResult
+
+    def to_json(self) -> dict[str, Any]:
+        return self.result.to_json()
+
+    @classmethod
+    def from_json(cls, d: dict) -> Searched:
+        _get(d, cls.TYPE, "size", (int, type(None)), _count)
+        _get(d, cls.TYPE, "max_size", (int,), _count)
+        _get(d, cls.TYPE, "counterfactuals", (list,))
+        _get(d, cls.TYPE, "tried", (list,))
+        return cls(SearchResult.from_json(d))
+
+
+@dataclass(frozen=True)
+class TieChosen:
+    """The user picked another of the minimal edits."""
+
+    TYPE: ClassVar[str] = "tie"
+    index: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"index": self.index}
+
+    @classmethod
+    def from_json(cls, d: dict) -> TieChosen:
+        return cls(_get(d, cls.TYPE, "index", (int,), _count))
+
+
+@dataclass(frozen=True)
+class Marked:
+    """An edited concept marked TI (with the values that are fine) or TR."""
+
+    TYPE: ClassVar[str] = "mark"
+    label: Label
+
+    def to_json(self) -> dict[str, Any]:
+        return self.label.to_dict()
+
+    @classmethod
+    def from_json(cls, d: dict) -> Marked:
+        for key in ("slot", "concept", "label"):
+            _get(d, cls.TYPE, key, (str,))
+        acceptable = _get(d, cls.TYPE, "acceptable", (list,))
+        if d["label"] not in ("TI", "TR"):
+            raise UserError(f"a mark is TI or TR, not {d['label']!r}")
+        if not all(isinstance(v, str) for v in acceptable):
+            raise UserError(f"mark.acceptable must be a list of names, got {acceptable!r}"[:100])
+        return cls(Label.from_dict(d))
+
+
+@dataclass(frozen=True)
+class Finetuned:
+    """An adaptation: the feedback, the files it wrote and the scores of both policies.
+
+    before/after are None in sessions written before scores were kept: applying the event
+    scores the base policy and the saved checkpoint again.
+    """
+
+    TYPE: ClassVar[str] = "finetune"
+    feedback: Feedback
+    n_augmented: int
+    losses: tuple[float, ...]
+    rollout_file: str
+    policy_dir: str
+    config: AdaptConfig | None = None
+    """How it adapted (None in sessions written before it was kept)."""
+    before: Score | None = None
+    after: Score | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "feedback": self.feedback.to_list(),
+            "n_augmented": self.n_augmented,
+            "losses": [round(v, 6) for v in self.losses],
+            "rollout_file": self.rollout_file,
+            "policy_dir": self.policy_dir,
+        }
+        if self.config is not None:
+            d["adapt"] = dataclasses.asdict(self.config)
+        if self.before is not None and self.after is not None:
+            d |= {
+                "success_before": self.before.on_shift,
+                "success_after": self.after.on_shift,
+                "success_all_before": self.before.on_all,
+                "success_all_after": self.after.on_all,
+                "scores": {"before": self.before.to_json(), "after": self.after.to_json()},
+            }
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> Finetuned:
+        k = cls.TYPE
+        losses = _get(d, k, "losses", (list,))
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in losses):
+            raise UserError("finetune.losses must be a list of numbers")
+        scores = _get(d, k, "scores", (dict,), default=None)
+        adapt = _get(d, k, "adapt", (dict,), default=None)
+        try:
+            before = None if scores is None else Score.from_json(scores["before"])
+            after = None if scores is None else Score.from_json(scores["after"])
+            config = None if adapt is None else AdaptConfig.from_dict(adapt).check()
+        except (KeyError, TypeError, ValueError) as e:
+            raise UserError(f"finetune event is malformed ({type(e).__name__}: {e})") from None
+        return cls(
+            Feedback.from_list(_get(d, k, "feedback", (list,))),
+            _get(d, k, "n_augmented", (int,), _count),
+            tuple(float(v) for v in losses),
+            _get(d, k, "rollout_file", (str,)),
+            _get(d, k, "policy_dir", (str,)),
+            config,
+            before,
+            after,
         )
-        state._recorded = -1
-    elif kind == "judgement":
-        run = need(state.run, "judge")
-        run.failed = ev["failed"]
-        if run.failed:
-            state.demo_input = input_for(run.world, run.task)
-    elif kind == "demonstration":
-        run = need(state.run, "demonstrate")
-        demo = computed or state.session.load_trajectory(ev["file"], ev)
-        if demo.scenes[0] != run.task.scene or demo.horizon != run.world.horizon:
-            raise UserError(f"{ev['file']} does not start from this task's scene")
-        run.demo, run.demo_source = demo, ev["source"]
-    elif kind == "search":
-        run = need(state.run, "diagnose")
+
+
+Event = TaskLoaded | Judged | Demonstrated | Searched | TieChosen | Marked | Finetuned
+TYPES: dict[str, type] = {
+    cls.TYPE: cls
+    for cls in (
+        SessionStarted,
+        TaskLoaded,
+        Judged,
+        Demonstrated,
+        Searched,
+        TieChosen,
+        Marked,
+        Finetuned,
+    )
+}
+
+
+def from_json(d: Any) -> SessionStarted | Event:
+    """The event a session line holds (its "type" says which); UserError if malformed."""
+    if not isinstance(d, dict):
+        raise UserError(f"expected a JSON object, got {type(d).__name__}")
+    kind = d.get("type")
+    if not isinstance(kind, str) or kind not in TYPES:
+        shown = repr(kind) if isinstance(kind, str) else json.dumps(kind)[:60]
+        raise UserError(f"unknown event type {shown}; accepted: {', '.join(TYPES)}")
+    return TYPES[kind].from_json(d)
+
+
+# -- applying events ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Rebuild:
+    """How applying an event gets what the event only names."""
+
+    policy: Callable[[World], Policy]
+    """The base policy of a world."""
+    trajectory: Callable[[str], Trajectory]
+    """A trajectory file of the session, by name."""
+    checkpoint: Callable[[str, World], Policy]
+    """A policy folder of the session, by name."""
+
+
+def need(record: RunRecord | None, *stages: str) -> RunRecord:
+    """The record, if the loop is at one of `stages`; else a UserError saying where it is."""
+    if record is None:
+        raise UserError("pick a task first")
+    if record.stage not in stages:
+        raise UserError(
+            f"not now: the loop is at '{record.stage}', this needs {' or '.join(stages)}"
+        )
+    return record
+
+
+def apply(
+    record: RunRecord | None, event: Event, rebuild: Rebuild, computed: Any = None
+) -> RunRecord:
+    """The record after `event` (its preconditions checked: UserError if unmet). `computed` is
+    what the live job already has (the new record for a task, the demonstration, the
+    diagnosis, the adaptation and evaluation), so nothing is done twice."""
+    if isinstance(event, TaskLoaded):
+        if computed is not None:
+            return computed
+        from dfa_viz.loop import start
+
+        world = get_world(event.world)
+        task = world.test_task(event.shift, event.task_seed)
+        return start(world, rebuild.policy(world), task, shift=event.shift, seed=event.seed)
+    if isinstance(event, Judged):
+        return judged(need(record, "judge"), event.failed)
+    if isinstance(event, Demonstrated):
+        rec = need(record, "demonstrate")
+        demo = computed if computed is not None else rebuild.trajectory(event.file)
+        if demo.scenes[0] != rec.task.scene or demo.horizon != len(rec.rollout.actions):
+            raise UserError(f"{event.file} does not start from this task's scene")
+        return demonstrated(rec, demo, event.source)
+    if isinstance(event, Searched):
+        rec = need(record, "diagnose")
         if computed is None:
-            result = work.search_from_json(ev)
-            cfs = work.counterfactual_rollouts(
-                run.world, state.policies.get(run.world), run.task, result
-            )
+            world = get_world(rec.world)
+            rollouts = counterfactual_rollouts(world, rebuild.policy(world), rec.task, event.result)
+            computed = Diagnosis(event.result, tuple(rollouts))
+        return dataclasses.replace(rec, diagnosis=computed, feedback=Feedback())
+    if isinstance(event, TieChosen):
+        rec = need(record, "feedback", "adapted")
+        n = min(len(rec.diagnosis.result.counterfactuals), len(rec.diagnosis.counterfactuals))
+        if not 0 <= event.index < n:
+            raise UserError(f"tie {event.index} does not exist; there are {n}")
+        labels = {(lab.slot, lab.concept): lab for lab in rec.feedback.labels}
+        diagnosis = dataclasses.replace(rec.diagnosis, tie=event.index)
+        return dataclasses.replace(rec, diagnosis=diagnosis).keeping_labels(labels)
+    if isinstance(event, Marked):
+        rec = need(record, "feedback", "adapted")
+        return rec.with_label(checked_label(get_world(rec.world), event.label))
+    if isinstance(event, Finetuned):
+        rec = need(record, "feedback", "adapted")
+        if computed is not None:
+            adaptation, evaluation = computed
         else:
-            result, cfs = computed
-        run.result, run.counterfactuals, run.tie = result, cfs, 0
-    elif kind == "tie":
-        run = need(state.run, "feedback", "adapted")
-        n = min(len(run.result.counterfactuals), work.MAX_TIES) if run.result else 0
-        if not 0 <= ev["index"] < n:
-            raise UserError(f"tie {ev['index']} does not exist; there are {n}")
-        run.tie = ev["index"]
-    elif kind == "mark":
-        run = need(state.run, "feedback", "adapted")
-        run.marks[(ev["slot"], ev["concept"])] = label_of(run.world, ev)
-    elif kind == "finetune":
-        run = need(state.run, "feedback", "adapted")
-        if computed is None:
-            rollout = state.session.load_trajectory(ev["rollout_file"], ev)
-            computed = Adaptation(
-                Feedback.from_list(ev["feedback"]),
-                ev["n_augmented"],
-                tuple(float(v) for v in ev["losses"]),
-                float(ev["success_before"]),
-                float(ev["success_after"]),
-                rollout,
+            world = get_world(rec.world)
+            augmented: tuple[Trajectory, ...] = ()
+            if event.config is not None:  # the variants again (the same seed, the same set)
+                augmented = tuple(
+                    augmentation(
+                        world,
+                        rec.task,
+                        rec.demo,
+                        event.feedback,
+                        config=event.config,
+                        known=training_demos(world),
+                        seed=rec.seed,
+                    )
+                )
+            adaptation = Adaptation(
+                event.feedback,
+                augmented,
+                event.config.budget if event.config else event.n_augmented + 1,
+                event.losses,
+                rebuild.trajectory(event.rollout_file),
             )
-        run.adaptation = computed
+            before, after = event.before, event.after
+            if before is None or after is None:  # an older session: score again
+                tuned = rebuild.checkpoint(event.policy_dir, world)
+                before = score(world, rebuild.policy(world), rec.task, seed=rec.seed)
+                after = score(world, tuned, rec.task, seed=rec.seed)
+            evaluation = Evaluation(before, after)
+        return dataclasses.replace(
+            rec, adaptation=adaptation, evaluation=evaluation, feedback=adaptation.feedback
+        )
+    raise UserError(f"a {type(event).__name__} cannot be applied to a run")
 
 
-def label_of(world: World, ev: dict) -> Label:
-    if ev["label"] not in ("TI", "TR"):
-        raise UserError(f"a mark is TI or TR, not {ev['label']!r}")
-    slot = world.space.slot(ev["slot"])
-    if ev["concept"] == PRESENCE:
-        values: tuple[str, ...] = ("present", "absent")
-    else:
-        values = slot.concept(ev["concept"]).values
-    bad = [v for v in ev["acceptable"] if v not in values]
+def checked_label(world: World, label: Label) -> Label:
+    """A mark's label with its acceptable values checked against the concept space."""
+    values = world.space.values(label.slot, label.concept)
+    bad = [v for v in label.acceptable if v not in values]
     if bad:
-        raise UserError(f"{ev['slot']}.{ev['concept']} has no {bad}; accepted: {', '.join(values)}")
-    relevant = ev["label"] == "TR"
-    return Label(ev["slot"], ev["concept"], relevant, () if relevant else tuple(ev["acceptable"]))
+        raise UserError(f"{label.slot}.{label.concept} has no {bad}; accepted: {', '.join(values)}")
+    if label.relevant:
+        return dataclasses.replace(label, acceptable=())
+    return label

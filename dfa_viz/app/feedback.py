@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import viser
 
-from dfa_viz.app.state import LoopState, View
-from sim.core import PRESENCE, Change, Label, UserError
+from dfa_viz.app.state import LoopState
+from dfa_viz.app.view import View
+from sim.core import Change, Label, UserError
 
 TI = "Task-irrelevant (TI)"
 TR = "Task-relevant (TR)"
@@ -69,7 +70,7 @@ class MarkControls:
             acceptable = self.acceptable()
             if not acceptable:
                 self.warn("keep at least one acceptable instantiation, or mark the concept TR")
-                self.sync(self.state.snapshot().run.marks.get(self.key))
+                self.sync(self.state.snapshot().record.label(*self.key))
                 return
             self.state.mark(*self.key, relevant=False, acceptable=acceptable)
         except UserError as e:
@@ -108,7 +109,7 @@ class FeedbackSection:
         self._edit_key: tuple | None = None
 
     def refresh(self, view: View) -> None:
-        run = view.run
+        run = view.record
         show = run is not None and view.stage in ("feedback", "adapted")
         self.folder.visible = show
         if not show:
@@ -118,11 +119,11 @@ class FeedbackSection:
         key = (id(run.task), str(edit))
         if key != self._edit_key:
             self._edit_key = key
-            self._rebuild(run, edit)
+            self._rebuild(view.world, edit)
         for c in self.controls:
-            c.sync(run.marks.get(c.key))
+            c.sync(run.label(*c.key))
 
-    def _rebuild(self, run, edit) -> None:
+    def _rebuild(self, world, edit) -> None:
         if self._holder is not None:
             self._holder.remove()
         self.controls = []
@@ -142,10 +143,5 @@ class FeedbackSection:
             self._holder = gui.add_folder("edited concepts")
             with self._holder:
                 for ch in edit.ordered:
-                    slot = run.world.space.slot(ch.slot)
-                    values = (
-                        ("present", "absent")
-                        if ch.concept == PRESENCE
-                        else slot.concept(ch.concept).values
-                    )
+                    values = world.space.values(ch.slot, ch.concept)
                     self.controls.append(MarkControls(gui, self.state, ch, values, self.warn))

@@ -16,8 +16,9 @@ from dfa_viz.app import plots
 from dfa_viz.app.canvas import Canvas
 from dfa_viz.app.compare import ComparePanel
 from dfa_viz.app.feedback import FeedbackSection
-from dfa_viz.app.state import LoopState, View
+from dfa_viz.app.state import LoopState
 from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
+from dfa_viz.app.view import View
 from sim.core import SHIFTS, UserError
 
 
@@ -73,7 +74,8 @@ class Page:
         with self.adapt_folder:
             self.finetune = gui.add_button("Augment & finetune", icon=viser.Icon.BOLT)
             self.finetune_job = gui.add_progress_bar(0, animated=True, visible=False)
-            data, series, scales = plots.loss_plot([], state.finetune_steps)
+            steps = state.adapt.train_config(0).steps
+            data, series, scales = plots.loss_plot([], steps)
             self.loss = gui.add_uplot(
                 data, series, scales=scales, title="finetuning loss", aspect=2.0, visible=False
             )
@@ -153,10 +155,10 @@ class Page:
 
     def _draw_controls(self, view: View) -> None:
         busy = view.job is not None
-        run, stage = view.run, view.stage
+        run, stage = view.record, view.stage
         if run is not None and id(run.task) != self._task_shown:
             self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
-            self.world.value, self.shift.value = run.world.name, run.shift
+            self.world.value, self.shift.value = run.world, run.shift
             self.seed.value = run.seed
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
@@ -199,27 +201,28 @@ class Page:
         )
 
     def _draw_diagnosis(self, view: View) -> None:
-        run = view.run
+        run = view.record
         if run is None:
             return
         self.diagnosis.content = diagnosis_text(view)
         edit = run.edit
-        self.delta.content = edit_table(run.world, run.task.scene, edit) if edit else ""
-        ties = ()
-        if run.result is not None and run.result.found:
+        self.delta.content = edit_table(view.world, run.task.scene, edit) if edit else ""
+        ties: tuple[str, ...] = ()
+        d = run.diagnosis
+        if d is not None and d.result.found:
             ties = tuple(
                 f"{i + 1}. {c.edit}"
-                for i, c in enumerate(run.result.counterfactuals[: len(run.counterfactuals)])
+                for i, c in enumerate(d.result.counterfactuals[: len(d.counterfactuals)])
             )
         self.tie.visible = len(ties) > 1
         if ties != self._ties:
             self._ties = ties
             self.tie.options = ties or ("—",)
         if ties:
-            self.tie.value = ties[run.tie]
+            self.tie.value = ties[d.tie]
 
     def _draw_adapt(self, view: View) -> None:
-        run = view.run
+        run = view.record
         if run is None:
             return
         losses = view.losses if view.job is not None and view.job.name == "finetune" else ()
@@ -227,13 +230,13 @@ class Page:
             losses = run.adaptation.losses
         self.loss.visible = bool(losses)
         if losses:
-            data, _, _ = plots.loss_plot(losses, self.state.finetune_steps)
+            data, _, _ = plots.loss_plot(losses, view.adapt.train_config(0).steps)
             self.loss.data = data
         self.results.content = results_text(view)
 
     def _draw_keys(self, view: View) -> None:
         """Buttons and hotkeys for worlds demonstrated with keys (doorkey)."""
-        run = view.run
+        run = view.record
         want = id(run.task) if run is not None and view.stage == "demonstrate" else None
         keys = self.state.demo_keys() if want is not None else ()
         if (want if keys else None) == self._keys_for:

@@ -21,7 +21,8 @@ from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_por
 from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState
-from sim import WORLDS
+from dfa_viz.configs import AdaptConfig, DemoArgs, ServeArgs
+from sim import WORLDS, get_world
 from sim.core import UserError, check_shift
 
 
@@ -41,20 +42,16 @@ class App:
         self.state.close()
 
 
-def _check_world(world: str) -> None:
-    if world not in WORLDS:
-        raise UserError(f"unknown world {world!r}; accepted: {', '.join(WORLDS)}")
-
-
 def open_state(
     *,
     world: str = "nav2d",
     session: Path | None = None,
     out: Path = Path("recordings"),
-    finetune_steps: int | None = None,
+    adapt: AdaptConfig = AdaptConfig(),
 ) -> LoopState:
     """The loop state of a session folder (resumed), or of a new one under out/sessions/."""
-    _check_world(world)
+    get_world(world)  # an unknown world: one line, before anything is created
+    adapt.check()
     sess = (
         Session.open(session, world=world)
         if session is not None
@@ -63,9 +60,7 @@ def open_state(
     try:
         for note in sess.notes:
             print(f"dfa serve: {note}", flush=True)
-        state = LoopState(sess, out=out, finetune_steps=finetune_steps)
-        sess.forget_details()  # replayed: the state holds what is shown
-        return state
+        return LoopState(sess, out=out, adapt_config=adapt)
     except BaseException:
         sess.close()
         raise
@@ -125,7 +120,7 @@ def start(
     host: str = "127.0.0.1",
     session: Path | None = None,
     out: Path = Path("recordings"),
-    finetune_steps: int | None = None,
+    adapt: AdaptConfig = AdaptConfig(),
     state: LoopState | None = None,
 ) -> App:
     """Start serving (non-blocking) and print the URL; `App.stop()` ends it.
@@ -136,7 +131,7 @@ def start(
     """
     chosen, note = serving_port(host, port)
     if state is None:
-        state = open_state(world=world, session=session, out=out, finetune_steps=finetune_steps)
+        state = open_state(world=world, session=session, out=out, adapt=adapt)
     try:
         with _guarded(PageGuard(host)):
             server = viser.ViserServer(host=host, port=chosen, label="DFA", verbose=False)
@@ -177,50 +172,32 @@ def start(
 
 def wait_idle(state: LoopState, *, timeout_s: float = 600.0) -> None:
     """Block until no job runs; raise the job's error, if it left one."""
-    deadline = time.monotonic() + timeout_s
-    while state.busy:
-        if time.monotonic() > deadline:
-            raise TimeoutError(
-                f"a {state.job.name if state.job else ''} job took over {timeout_s} s"
-            )
-        time.sleep(0.05)
-    if state.error:
-        raise UserError(state.error)
+    state.jobs.wait(timeout_s)
 
 
-def serve(
-    *,
-    world: str = "nav2d",
-    port: int | None = None,
-    host: str = "127.0.0.1",
-    session: Path | None = None,
-    out: Path = Path("recordings"),
-) -> None:
-    """Serve the page until interrupted (Ctrl-C); the session folder keeps everything.
-    `port`: None for 8080 or the next free port; see `start`."""
-    app = start(world=world, port=port, host=host, session=session, out=out)
+def serve(args: ServeArgs) -> None:
+    """Serve the page until interrupted (Ctrl-C); the session folder keeps everything."""
+    app = start(
+        world=args.world,
+        port=args.port,
+        host=args.host,
+        session=args.session,
+        out=args.out,
+        adapt=args.adapt,
+    )
     _block(app)
 
 
-def demo(
-    world: str = "nav2d",
-    shift: str = "distractor_ti",
-    seed: int = 0,
-    *,
-    port: int | None = None,
-    host: str = "127.0.0.1",
-    out: Path = Path("recordings"),
-    block: bool = True,
-) -> App:
+def demo(args: DemoArgs, *, block: bool = True) -> App:
     """Open the page on a default scenario with the diagnosis already computed: the task is
     loaded, judged failed, demonstrated by the expert and searched before the URL is printed.
     Host and port are checked first (as in `start`), before any session folder is made."""
-    serving_port(host, port)
-    check_shift(shift)
-    state = open_state(world=world, out=out)
+    serving_port(args.host, args.port)
+    check_shift(args.shift)
+    state = open_state(world=args.world, out=args.out, adapt=args.adapt)
     try:
-        print(f"dfa demo: preparing {world} / {shift} / seed {seed}…", flush=True)
-        state.pick(world, shift, seed)
+        print(f"dfa demo: preparing {args.world} / {args.shift} / seed {args.seed}…", flush=True)
+        state.pick(args.world, args.shift, args.seed)
         wait_idle(state)
         state.judge(True)
         state.demonstrate(expert=True)
@@ -228,7 +205,7 @@ def demo(
     except BaseException:
         state.close()
         raise
-    app = start(port=port, host=host, state=state)
+    app = start(port=args.port, host=args.host, state=state)
     if block:
         _block(app)
     return app

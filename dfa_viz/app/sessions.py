@@ -3,7 +3,7 @@
 A session folder holds:
     session.jsonl   one JSON object per line; the first is the header
                     {"type": "session", "version": 1, "world": ...}; then one event per user
-                    action or finished job (see EVENTS for each type's fields).
+                    action or finished job (dfa_viz.app.events: one class per type).
     demo-NNNN.npz   demonstrations (sim.core.Trajectory files) named by "demonstration" events.
     finetuned-NNNN.npz, policy-NNNN/   the finetuned rollout and checkpoint of a "finetune" event.
     session.lock    held (flock) while a server has the session open.
@@ -22,106 +22,28 @@ import json
 import os
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from sim import WORLDS
-from sim.core import Trajectory, UserError, check_seed, check_shift
+from dfa_viz.app import events
+from sim.core import Trajectory, UserError
 
 LOG = "session.jsonl"
 LOCK = "session.lock"
-VERSION = 1
-
-# event type -> required fields and their JSON types (bool is checked apart from int)
-EVENTS: dict[str, dict[str, tuple[type, ...]]] = {
-    "session": {"version": (int,), "world": (str,)},
-    "task": {"world": (str,), "shift": (str,), "seed": (int,), "task_seed": (int,)},
-    "judgement": {"failed": (bool,)},
-    "demonstration": {"file": (str,), "source": (str,)},
-    "search": {
-        "size": (int, type(None)),
-        "max_size": (int,),
-        "counterfactuals": (list,),
-        "tried": (list,),
-    },
-    "tie": {"index": (int,)},
-    "mark": {"slot": (str,), "concept": (str,), "label": (str,), "acceptable": (list,)},
-    "finetune": {
-        "feedback": (list,),
-        "n_augmented": (int,),
-        "losses": (list,),
-        "success_before": (int, float),
-        "success_after": (int, float),
-        "rollout_file": (str,),
-        "policy_dir": (str,),
-    },
-}
-
-
-def _check_world(world: str, name: str = "") -> None:
-    if world not in WORLDS:
-        where = f"{name}: " if name else ""
-        raise UserError(f"{where}unknown world {world!r}; accepted: {', '.join(WORLDS)}")
-
-
-def _check_shift(shift: str, name: str) -> None:
-    try:
-        check_shift(shift)
-    except UserError as e:
-        raise UserError(f"{name}: {e}") from None
-
-
-def _check_count(value: int, name: str) -> None:
-    if value < 0:
-        raise UserError(f"{name} must not be negative, got {value}")
-
-
-# (event type, field) -> a check of its value beyond its JSON type: check(value, "type.field")
-# raises UserError saying what is wrong and what is accepted
-VALUES: dict[tuple[str, str], Callable[[Any, str], object]] = {
-    ("session", "world"): _check_world,
-    ("task", "world"): _check_world,
-    ("task", "shift"): _check_shift,
-    ("task", "seed"): check_seed,
-    ("task", "task_seed"): check_seed,
-    ("tie", "index"): _check_count,
-    ("search", "max_size"): _check_count,
-    ("finetune", "n_augmented"): _check_count,
-}
+VERSION = events.VERSION
+Entry = tuple[int, Any]  # (line number, typed event of dfa_viz.app.events)
 
 
 class SessionError(UserError):
     """A session folder that cannot be read or opened; the message names the file and line."""
 
 
-def _check_fields(path: Path, line: int, event: Any) -> None:
-    where = f"{path}:{line}"
-    if not isinstance(event, dict):
-        raise SessionError(f"{where}: expected a JSON object, got {type(event).__name__}")
-    kind = event.get("type")
-    if not isinstance(kind, str) or kind not in EVENTS:
-        shown = repr(kind) if isinstance(kind, str) else json.dumps(kind)[:60]
-        raise SessionError(f"{where}: unknown event type {shown}; accepted: {', '.join(EVENTS)}")
-    for key, types in EVENTS[kind].items():
-        if key not in event:
-            raise SessionError(
-                f"{where}: {kind} event without {key!r}; it needs {', '.join(EVENTS[kind])}"
-            )
-        value = event[key]
-        ok = isinstance(value, types) and not (isinstance(value, bool) and bool not in types)
-        if not ok:
-            names = " or ".join("null" if t is type(None) else t.__name__ for t in types)
-            raise SessionError(
-                f"{where}: {kind}.{key} must be {names}, got {json.dumps(value)[:60]}"
-            )
-    for key in EVENTS[kind]:  # the values, once every type is right
-        check = VALUES.get((kind, key))
-        if check is not None:
-            try:
-                check(event[key], f"{kind}.{key}")
-            except UserError as e:
-                raise SessionError(f"{where}: {e}") from None
+def _event(path: Path, line: int, raw: Any):
+    """The typed event of one line, or a SessionError naming the file and line."""
+    try:
+        return events.from_json(raw)
+    except UserError as e:
+        raise SessionError(f"{path}:{line}: {e}") from None
 
 
 def _why_not_json(e: BaseException) -> str:
@@ -136,18 +58,17 @@ def _why_not_json(e: BaseException) -> str:
     return str(e).splitlines()[0][:100] if str(e) else type(e).__name__
 
 
-def read_events(folder: Path) -> tuple[list[dict[str, Any]], int, list[str]]:
+def read_events(folder: Path) -> tuple[list[Entry], int, list[str]]:
     """Parse and check session.jsonl without writing anything.
 
-    Returns (events, bytes of complete lines, notes). Each event gets its line number under
-    the key "_line".
+    Returns (entries, bytes of complete lines, notes): (line number, typed event) per line.
     """
     path = folder / LOG
     try:
         raw = path.read_bytes()
     except OSError as e:
         raise SessionError(f"{path}: cannot read the session log ({e.strerror})") from None
-    events: list[dict[str, Any]] = []
+    entries: list[Entry] = []
     notes: list[str] = []
     good_size = 0
     lines = raw.split(b"\n")
@@ -166,25 +87,19 @@ def read_events(folder: Path) -> tuple[list[dict[str, Any]], int, list[str]]:
                 )
                 break
             raise SessionError(f"{path}:{i}: not a JSON line ({_why_not_json(e)})") from None
-        _check_fields(path, i, event)
-        event["_line"] = i
-        events.append(event)
+        entries.append((i, _event(path, i, event)))
         good_size += len(chunk) + (0 if last else 1)
-    if not events:
+    if not entries:
         raise SessionError(f"{path}:1: empty session log; expected a session header line")
-    head = events[0]
-    if head["type"] != "session":
+    head = entries[0][1]
+    if not isinstance(head, events.SessionStarted):
         raise SessionError(
-            f"{path}:1: the first line must be the session header, not a {head['type']} event"
+            f"{path}:1: the first line must be the session header, not a {head.TYPE} event"
         )
-    if head["version"] != VERSION:
-        raise SessionError(
-            f"{path}:1: session format version {head['version']}; this program reads {VERSION}"
-        )
-    for e in events[1:]:
-        if e["type"] == "session":
-            raise SessionError(f"{path}:{e['_line']}: a second session header")
-    return events, good_size, notes
+    for line, e in entries[1:]:
+        if isinstance(e, events.SessionStarted):
+            raise SessionError(f"{path}:{line}: a second session header")
+    return entries, good_size, notes
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -195,23 +110,16 @@ def _fsync_dir(folder: Path) -> None:
         os.close(fd)
 
 
-def _summary(event: dict[str, Any]) -> dict[str, Any]:
-    """An event without its list fields: what a session keeps in memory once the event is
-    applied (a search's candidate lists would otherwise pile up, one per loop)."""
-    return {k: v for k, v in event.items() if not isinstance(v, list)}
-
-
 class Session:
-    """One open session folder: its events so far and a durable, thread-safe `append`.
+    """One open session folder: a durable, thread-safe `append`, and the entries the log held
+    when it was opened (`replay`, to rebuild the state from; handed out once and then
+    dropped, so that no event stays in memory: they are on disk)."""
 
-    `events` holds every event of the log in order, each with its "_line". Events read at
-    open are whole until `forget_details()`; appended ones are kept as summaries (no list
-    fields: those are on disk, and the caller of `append` gets the whole event).
-    """
-
-    def __init__(self, folder: Path, events: list[dict[str, Any]], size: int, notes: list[str]):
+    def __init__(self, folder: Path, entries: list[Entry], size: int, notes: list[str]):
         self.folder = folder
-        self.events = events
+        self.world = entries[0][1].world if entries else ""
+        self.lines = len(entries)
+        self._replay = entries[1:]
         self.notes = notes
         self._size = size  # bytes of complete lines; a torn tail beyond it is cut on append
         self._lock = threading.Lock()
@@ -221,28 +129,25 @@ class Session:
     def path(self) -> Path:
         return self.folder / LOG
 
-    @property
-    def world(self) -> str:
-        return str(self.events[0]["world"])
-
     @classmethod
     def open(cls, folder: str | Path, *, world: str) -> Session:
         """Resume `folder` if it holds a session, else start one there (created if needed)."""
         folder = Path(folder)
         try:
-            _check_world(world)
+            events.SessionStarted.from_json({"version": VERSION, "world": world})
         except UserError as e:
             raise SessionError(f"{folder}: {e}") from None
         if (folder / LOG).exists():
-            events, size, notes = read_events(folder)
-            session = cls(folder, events, size, notes)
+            entries, size, notes = read_events(folder)
+            session = cls(folder, entries, size, notes)
         else:
             if folder.exists() and not folder.is_dir():
                 raise SessionError(f"{folder}: not a folder")
             folder.mkdir(parents=True, exist_ok=True)
             session = cls(folder, [], 0, [])
             session._acquire()
-            session.append("session", version=VERSION, world=world)
+            session.append(events.SessionStarted(world))
+            session.world = world
             return session
         session._acquire()
         return session
@@ -274,11 +179,15 @@ class Session:
             os.close(self._lock_fd)  # releases the flock
             self._lock_fd = None
 
-    def append(self, kind: str, **fields: Any) -> dict[str, Any]:
-        """Write one event line; returns once it is flushed and fsynced."""
-        event = {"type": kind, **fields, "time": time.strftime("%Y-%m-%dT%H:%M:%S")}
-        _check_fields(self.path, len(self.events) + 1, event)
-        line = (json.dumps(event, separators=(",", ":")) + "\n").encode()
+    def replay(self) -> list[Entry]:
+        """The (line, event) entries read at open, after the header (once; then [])."""
+        entries, self._replay = self._replay, []
+        return entries
+
+    def append(self, event) -> int:
+        """Write one event line; returns its line number once it is flushed and fsynced."""
+        doc = {"type": event.TYPE, **event.to_json(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        line = (json.dumps(doc, separators=(",", ":"), allow_nan=False) + "\n").encode()
         with self._lock:
             new = not self.path.exists()
             with open(self.path, "wb" if new else "r+b") as f:
@@ -294,48 +203,49 @@ class Session:
             if new:
                 _fsync_dir(self.folder)
             self._size += len(line)
-            event["_line"] = len(self.events) + 1
-            self.events.append(_summary(event))
-        return event
-
-    def forget_details(self) -> None:
-        """Keep only the summary of each event so far (see `events`); once a session has been
-        replayed its events' lists (every candidate a search tried, every loss) are needed
-        on disk only."""
-        with self._lock:
-            self.events = [_summary(e) for e in self.events]
+            self.lines += 1
+            return self.lines
 
     # -- files next to the log ----------------------------------------------------------------
     def next_name(self, stem: str, suffix: str = "") -> str:
         """A file name not used yet: <stem>-NNNN<suffix>, numbered by the log's length."""
-        k = len(self.events)
+        k = self.lines
         while (self.folder / f"{stem}-{k:04d}{suffix}").exists():
             k += 1
         return f"{stem}-{k:04d}{suffix}"
 
     def save_trajectory(self, traj: Trajectory, stem: str) -> str:
-        """Write a trajectory durably next to the log; returns its file name."""
+        """Write a trajectory durably next to the log (Trajectory.save fsyncs); returns its
+        file name."""
         name = self.next_name(stem, ".npz")
         traj.save(self.folder / name)
-        with open(self.folder / name, "rb") as f:
-            os.fsync(f.fileno())
-        _fsync_dir(self.folder)
         return name
 
-    def file(self, name: str, event: dict[str, Any]) -> Path:
+    def file(self, name: str, line: int | str = "?") -> Path:
         """The path of a file an event names; it must be a plain name inside the folder."""
         if not name or "/" in name or "\\" in name or name in (".", ".."):
             raise SessionError(
-                f"{self.path}:{event.get('_line', '?')}: {name!r} is not a file name in the "
-                "session folder"
+                f"{self.path}:{line}: {name!r} is not a file name in the session folder"
             )
         return self.folder / name
 
-    def load_trajectory(self, name: str, event: dict[str, Any]) -> Trajectory:
-        path = self.file(name, event)
+    def load_trajectory(self, name: str, line: int | str = "?") -> Trajectory:
         try:
-            return Trajectory.load(path)
+            return Trajectory.load(self.file(name, line))
         except UserError as e:
+            if isinstance(e, SessionError):
+                raise
+            raise SessionError(f"{self.path}:{line}: the file it names is unusable: {e}") from None
+
+    def load_policy(self, name: str, world, line: int | str = "?"):
+        """A checkpoint folder the session saved (policy.load_policy, checked for `world`)."""
+        from policy import load_policy
+
+        try:
+            return load_policy(self.file(name, line), world=world)
+        except UserError as e:
+            if isinstance(e, SessionError):
+                raise
             raise SessionError(
-                f"{self.path}:{event.get('_line', '?')}: the file it names is unusable: {e}"
+                f"{self.path}:{line}: the folder it names is unusable: {e}"
             ) from None

@@ -1,18 +1,20 @@
 """The page's loop state, shared by every tab of one session.
 
-Algorithm 1 as a state machine driven by the user:
+Algorithm 1 driven by the user, as the loop's own steps (dfa_viz.loop):
     pick -> judge -> demonstrate -> diagnose (search job) -> feedback -> adapt (finetune job)
-(`solved` when the user says the rollout succeeded). Each user action is appended to the
-session log (flushed and fsynced) before the state changes and the tabs are told; replaying
-the log rebuilds the same state, so a restart with the same session resumes where it stopped.
+(`solved` when the user says the rollout succeeded). The run so far is one RunRecord. Each user
+action is a typed event (dfa_viz.app.events), appended to the session log (flushed and
+fsynced) before it is applied; applying an event returns the next record, and replaying the log
+rebuilds the same record, so a restart with the same session resumes where it stopped.
 
-Thread-safety: every read and write of the state holds `self._lock`; long jobs run on one
-worker thread at a time (a second start while one runs is refused, harmlessly); subscribers
-(the tabs) are called outside the lock with the set of things that changed.
+Thread-safety: every read and write of the state holds `self._lock`; long jobs run one at a
+time (dfa_viz.app.jobs); subscribers (the tabs) are called outside the lock with the set of
+things that changed.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import queue
 import threading
@@ -21,16 +23,42 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from dfa_viz.app import work
-from dfa_viz.app.demonstrate import DemoInput
-from dfa_viz.app.events import apply_event
-from dfa_viz.app.run import Job, Run, View, need
+from dfa_viz.app import events as E
+from dfa_viz.app.demonstrate import DemoInput, input_for
+from dfa_viz.app.jobs import Jobs
 from dfa_viz.app.sessions import Session, SessionError
-from dfa_viz.app.work import Policies
-from sim.core import UserError, require_success
+from dfa_viz.app.view import View
+from dfa_viz.loop import AdaptConfig, RunRecord, adapt, diagnose, evaluate, start
+from dfa_viz.recording import write_recording
+from policy import Policy, base_policy, failing_test_task, save_policy, training_demos
+from search import SearchConfig
+from sim import get_world
+from sim.core import Label, UserError, World, check_seed, check_shift, require_success
 
 Listener = Callable[[set[str]], None]
 LOSS_NOTIFY_S = 0.2  # at most this often while finetuning
+
+
+class Policies:
+    """Base policies and training demonstrations by world, made (or loaded) once per process."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._policies: dict[str, Policy] = {}
+        self._known: dict[str, tuple] = {}
+
+    def get(self, world: World) -> Policy:
+        with self._lock:
+            if world.name not in self._policies:
+                self._policies[world.name] = base_policy(world)
+            return self._policies[world.name]
+
+    def known(self, world: World) -> tuple:
+        """The base policy's training demonstrations (variant sources, replayed)."""
+        with self._lock:
+            if world.name not in self._known:
+                self._known[world.name] = tuple(training_demos(world))
+            return self._known[world.name]
 
 
 class LoopState:
@@ -41,18 +69,16 @@ class LoopState:
         session: Session,
         *,
         out: Path = Path("recordings"),
-        finetune_steps: int | None = None,
+        adapt_config: AdaptConfig = AdaptConfig(),
         policies: Policies | None = None,
     ) -> None:
         self.session = session
         self.out = Path(out)
-        self.finetune_steps = finetune_steps or work.FINETUNE.steps
+        self.adapt = adapt_config.check()
         self.policies = policies or Policies()
         self.world_name = session.world
-        self.run: Run | None = None
+        self.record: RunRecord | None = None
         self.demo_input: DemoInput | None = None
-        self.job: Job | None = None
-        self.error = ""
         self.losses: list[float] = []  # live, while finetuning
         self.version = 0  # bumps on every notification
         self.content = 0  # bumps on every committed event (what the recording shows)
@@ -62,6 +88,12 @@ class LoopState:
         self._record_lock = threading.Lock()
         self._listeners: dict[int, Listener] = {}
         self._ids = itertools.count()
+        self.jobs = Jobs(self._notify)
+        self._rebuild = E.Rebuild(
+            policy=self.policies.get,
+            trajectory=lambda name: session.load_trajectory(name),
+            checkpoint=lambda name, world: session.load_policy(name, world),
+        )
         self._inputs: queue.Queue = queue.Queue()
         threading.Thread(target=self._input_loop, name="dfa-inputs", daemon=True).start()
         self._replay()
@@ -114,74 +146,55 @@ class LoopState:
             except Exception:  # one broken tab must not stop the others
                 traceback.print_exc()
 
-    # -- applying events (live and on replay) -------------------------------------------------
+    # -- events: written, then applied (live), or replayed ------------------------------------
+    def _apply(self, event, line: int, computed=None) -> None:
+        """Apply one event to the record (holding the lock); the task event also names the
+        recording and makes a fresh demonstration input when judged failed."""
+        self.record = E.apply(self.record, event, self._rebuild, computed)
+        if isinstance(event, E.TaskLoaded):
+            self.world_name = event.world
+            self.demo_input = None
+            # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session and the line of
+            # this task in its log: loading another task (or this one again) keeps this one
+            self.recording = self.out / (
+                f"{event.world}-{event.shift}-seed{event.seed}-{self.session.folder.name}"
+                f"-task{line}.rrd"
+            )
+            self._recorded = -1
+        elif isinstance(event, E.Judged) and event.failed:
+            self.demo_input = input_for(get_world(self.record.world), self.record.task)
+
     def _replay(self) -> None:
-        for event in self.session.events[1:]:
+        for line, event in self.session.replay():
             try:
-                apply_event(self, event)
+                with self._lock:
+                    self._apply(event, line)
             except UserError as e:
                 if isinstance(e, SessionError):
                     raise
-                raise SessionError(f"{self.session.path}:{event['_line']}: {e}") from None
-        if self.run is not None and self.run.stage == "diagnose":
-            self._start("search", self._search_job)  # the search was cut off: run it again
+                raise SessionError(f"{self.session.path}:{line}: {e}") from None
+        if self.record is not None and self.record.stage == "diagnose":
+            self.jobs.start("search", self._search_job)  # the search was cut off: run it again
 
-    def _commit(self, kind: str, computed=None, **fields) -> None:
+    def _commit(self, event, computed=None) -> None:
         """Append the event durably, then apply it (all under the state lock)."""
         with self._lock:
-            ev = self.session.append(kind, **fields)
-            apply_event(self, ev, computed)
+            line = self.session.append(event)
+            self._apply(event, line, computed)
             self.content += 1
 
-    def _policy(self, run: Run):
-        return self.policies.get(run.world)
-
-    # -- jobs ---------------------------------------------------------------------------------
-    def _start(self, name: str, fn: Callable[[], None], text: str = "") -> bool:
-        with self._lock:
-            if self.job is not None:
-                return False  # one job at a time; a second click does nothing
-            self.job = Job(name, 0.0, text or f"{name}…")
-            self.error = ""
-        threading.Thread(target=self._run_job, args=(fn,), name=f"dfa-{name}", daemon=True).start()
-        self._notify({"job"})
-        return True
-
-    def _run_job(self, fn: Callable[[], None]) -> None:
-        try:
-            fn()
-        except UserError as e:
-            with self._lock:
-                self.error = str(e)
-        except Exception as e:  # shown on the page; the server keeps running
-            traceback.print_exc()
-            with self._lock:
-                self.error = f"{type(e).__name__}: {e}"
-        finally:
-            with self._lock:
-                self.job = None
-            self._notify({"job", "stage", "error"})
-
-    def _progress(self, progress: float, text: str) -> None:
-        with self._lock:
-            if self.job is not None:
-                self.job = Job(self.job.name, max(0.0, min(1.0, progress)), text)
-        self._notify({"job"})
-
+    # -- what the tabs draw -------------------------------------------------------------------
     def snapshot(self) -> View:
         with self._lock:
-            run = self.run
-            copy = None
-            if run is not None:
-                copy = Run(**{**run.__dict__, "marks": dict(run.marks)})
-            d = self.demo_input
+            rec, d = self.record, self.demo_input
             return View(
                 self.version,
                 self.world_name,
-                copy,
-                "pick" if run is None else run.stage,
-                self.job,
-                self.error,
+                None if rec is None else get_world(rec.world),
+                rec,
+                "pick" if rec is None else rec.stage,
+                self.jobs.current,
+                self.jobs.error,
                 tuple(self.losses),
                 d.kind if d else "",
                 d.hint if d else "",
@@ -190,24 +203,22 @@ class LoopState:
                 d.problem() if d else "",
                 self.recording,
                 self.session.folder,
+                self.adapt,
             )
 
     def demo_canvas(self):
         """uint8 (H, W, 3): the demonstration canvas, or the task's first frame; None before
         a task is picked."""
         with self._lock:
-            if (
-                self.demo_input is not None
-                and self.run is not None
-                and self.run.stage == "demonstrate"
-            ):
+            rec = self.record
+            if self.demo_input is not None and rec is not None and rec.stage == "demonstrate":
                 return self.demo_input.canvas()
-            if self.run is None:
+            if rec is None:
                 return None
             from dfa_viz.app import frames
 
-            k = frames.scale_for(self.run.world.obs_shape, frames.CANVAS_PX)
-            return frames.upscale(self.run.rollout.observations[0], k)
+            k = frames.scale_for(rec.rollout.observations.shape[1:], frames.CANVAS_PX)
+            return frames.upscale(rec.rollout.observations[0], k)
 
     def demo_keys(self):
         with self._lock:
@@ -215,45 +226,42 @@ class LoopState:
 
     @property
     def busy(self) -> bool:
-        with self._lock:
-            return self.job is not None
+        return self.jobs.current is not None
 
     # -- user actions -------------------------------------------------------------------------
     def pick(self, world: str, shift: str, seed: int) -> bool:
         """Load the failing test task of (world, shift, seed) and roll the base policy out."""
 
         def job() -> None:
-            self._progress(0.1, f"loading the {world} base policy and finding the test task")
-            computed = work.pick_task(world, shift, seed, self.policies)
-            self._commit(
-                "task",
-                computed,
-                world=world,
-                shift=shift,
-                seed=seed,
-                task_seed=computed[1].seed,
-            )
+            w = get_world(world)
+            check_shift(shift)
+            check_seed(seed)
+            self.jobs.progress(0.1, f"loading the {world} base policy and finding the test task")
+            policy = self.policies.get(w)
+            task, _ = failing_test_task(w, policy, shift, seed)
+            record = start(w, policy, task, shift=shift, seed=seed)
+            self._commit(E.TaskLoaded(world, shift, seed, task.seed), record)
             self._notify({"stage"})
 
-        return self._start("task", job, f"finding a {shift} task for seed {seed}")
+        return self.jobs.start("task", job, f"finding a {shift} task for seed {seed}")
 
     def next_task(self) -> bool:
         with self._lock:
-            run = self.run
-        if run is None:
+            rec = self.record
+        if rec is None:
             return self.pick(self.world_name, "object_ti", 0)
-        return self.pick(run.world.name, run.shift, run.seed + 1)
+        return self.pick(rec.world, rec.shift, rec.seed + 1)
 
     def judge(self, failed: bool) -> None:
         with self._lock:
-            need(self.run, "judge")
-            self._commit("judgement", failed=failed)
+            E.need(self.record, "judge")
+            self._commit(E.Judged(failed))
         self._notify({"stage"})
 
     def _demo_edit(self, fn: Callable[[DemoInput], None]) -> None:
         with self._lock:
-            need(self.run, "demonstrate")
-            if self.demo_input is None or self.job is not None:
+            E.need(self.record, "demonstrate")
+            if self.demo_input is None or self.busy:
                 return
             fn(self.demo_input)
         self._notify({"demo"})
@@ -271,79 +279,88 @@ class LoopState:
         self._demo_edit(lambda d: d.clear())
 
     def demonstrate(self, *, expert: bool) -> bool:
-        """Take the user's demonstration (or the expert's), save it, and start the search."""
+        """Take the user's demonstration (or the expert's), save it, and start the search. One
+        that does not do what the task asks is refused, with the reason."""
         with self._lock:
-            run = need(self.run, "demonstrate")
-            source = "expert" if expert else (self.demo_input.kind if self.demo_input else "")
-            if not expert and (self.demo_input is None or not self.demo_input.given()):
+            rec = E.need(self.record, "demonstrate")
+            d = self.demo_input
+            source = "expert" if expert else (d.kind if d else "")
+            if not expert and (d is None or not d.given()):
                 raise UserError("demonstrate first (or ask the expert)")
-            if not expert and not self.demo_input.ready():
-                raise UserError(self.demo_input.problem())
-            make = (
-                (lambda: run.world.demonstrate(run.task)) if expert else self.demo_input.trajectory
-            )
+            if not expert and not d.ready():
+                raise UserError(d.problem())
+            world = get_world(rec.world)
+            make = (lambda: world.demonstrate(rec.task)) if expert else d.trajectory
 
         def job() -> None:
-            self._progress(0.0, "saving the demonstration")
+            self.jobs.progress(0.0, "saving the demonstration")
             demo = make()
-            require_success(run.task, demo, source=f"the {source} demonstration")
+            require_success(rec.task, demo, source=f"the {source} demonstration")
             name = self.session.save_trajectory(demo, "demo")
-            self._commit("demonstration", demo, file=name, source=source)
+            self._commit(E.Demonstrated(name, source), demo)
             self._notify({"stage"})
             self._search_job()
 
-        return self._start("search", job, "saving the demonstration")
+        return self.jobs.start("search", job, "saving the demonstration")
 
     def _search_job(self) -> None:
         with self._lock:
-            run = need(self.run, "diagnose")
+            rec = E.need(self.record, "diagnose")
+        world = get_world(rec.world)
 
         def on_progress(size: int, done: int, total: int) -> None:
-            self._progress(done / max(total, 1), f"searching edits of size {size}: {done}/{total}")
+            self.jobs.progress(
+                done / max(total, 1), f"searching edits of size {size}: {done}/{total}"
+            )
 
-        policy = self._policy(run)
-        result = work.search(run.world, policy, run.task, run.demo, on_progress=on_progress)
-        cfs = work.counterfactual_rollouts(run.world, policy, run.task, result)
-        self._commit("search", (result, cfs), **work.search_to_json(result))
+        diagnosis = diagnose(
+            world,
+            self.policies.get(world),
+            rec.task,
+            rec.demo,
+            config=SearchConfig.for_world(world),
+            on_progress=on_progress,
+        )
+        self._commit(E.Searched(diagnosis.result), diagnosis)
         self._notify({"stage"})
-        self._progress(1.0, "writing the recording")
+        self.jobs.progress(1.0, "writing the recording")
         self.write_recording()
 
     def select_tie(self, index: int) -> None:
         with self._lock:
-            run = need(self.run, "feedback", "adapted")
-            if index == run.tie:
+            rec = E.need(self.record, "feedback", "adapted")
+            if index == rec.diagnosis.tie:
                 return
-            self._commit("tie", index=index)
+            self._commit(E.TieChosen(index))
         self._notify({"stage"})
 
     def mark(self, slot: str, concept: str, *, relevant: bool, acceptable: tuple[str, ...]) -> None:
         """Mark an edited concept TR, or TI with the instantiations that are acceptable."""
         with self._lock:
-            run = need(self.run, "feedback", "adapted")
-            label = "TR" if relevant else "TI"
-            current = run.marks.get((slot, concept))
+            rec = E.need(self.record, "feedback", "adapted")
+            current = rec.label(slot, concept)
             if (
                 current is not None
                 and current.relevant == relevant
                 and (relevant or current.acceptable == tuple(acceptable))
             ):
                 return
-            self._commit(
-                "mark", slot=slot, concept=concept, label=label, acceptable=list(acceptable)
-            )
+            label = Label(slot, concept, relevant, () if relevant else tuple(acceptable))
+            self._commit(E.Marked(label))
         self._notify({"marks"})
 
     def finetune(self) -> bool:
         """Augment over the TI marks, finetune, evaluate; refused while a job runs."""
         with self._lock:
-            run = need(self.run, "feedback", "adapted")
-            missing = run.unmarked()
+            rec = E.need(self.record, "feedback", "adapted")
+            missing = rec.unmarked()
             if missing:
                 raise UserError(f"mark {', '.join(missing)} as TI or TR first")
-            feedback = work.feedback_for(run.edit, run.marks)
-            if self.job is not None:
+            if self.busy:
                 return False
+        world = get_world(rec.world)
+        config = self.adapt
+        steps = config.train_config(rec.seed).steps
 
         def job() -> None:
             self.losses = []
@@ -352,53 +369,70 @@ class LoopState:
             def on_loss(step: int, loss: float) -> None:
                 self.losses.append(loss)
                 now = time.monotonic()
-                if now - last[0] > LOSS_NOTIFY_S or step + 1 == self.finetune_steps:
+                if now - last[0] > LOSS_NOTIFY_S or step + 1 == steps:
                     last[0] = now
-                    self._progress(
-                        0.9 * (step + 1) / self.finetune_steps,
-                        f"finetuning: step {step + 1}/{self.finetune_steps}, loss {loss:.4f}",
+                    self.jobs.progress(
+                        0.9 * (step + 1) / steps,
+                        f"finetuning: step {step + 1}/{steps}, loss {loss:.4f}",
                     )
                     self._notify({"losses"})
 
-            adaptation = work.adapt(
-                run.world,
-                self._policy(run),
-                run.task,
-                run.demo,
-                feedback,
-                seed=run.seed,
-                steps=self.finetune_steps,
-                on_loss=on_loss,
-                on_phase=lambda text: self._progress(self.job.progress if self.job else 0, text),
+            self.jobs.progress(
+                0.0, f"making up to {config.budget - 1} variants of the demonstration"
             )
-            fields = work.save_adaptation(self.session, adaptation, run.task)
-            self._commit("finetune", adaptation, **fields)
+            base = self.policies.get(world)
+            adaptation = adapt(
+                world,
+                base,
+                rec.task,
+                rec.demo,
+                rec.feedback,
+                config=config,
+                seed=rec.seed,
+                known=self.policies.known(world),
+                on_loss=on_loss,
+            )
+            self.jobs.progress(0.92, "scoring both policies on fresh tasks")
+            evaluation = evaluate(
+                world, base, adaptation.policy, rec.task, n=config.finetuning.n_eval, seed=rec.seed
+            )
+            rollout_file = self.session.save_trajectory(adaptation.rollout, "finetuned")
+            policy_dir = self.session.next_name("policy")
+            save_policy(
+                adaptation.policy,
+                self.session.folder / policy_dir,
+                meta={"task_seed": rec.task.seed},
+            )
+            event = E.Finetuned(
+                adaptation.feedback,
+                len(adaptation.augmented),
+                adaptation.losses,
+                rollout_file,
+                policy_dir,
+                config,
+                evaluation.before,
+                evaluation.after,
+            )
+            self._commit(event, (adaptation, evaluation))
             self._notify({"stage"})
-            self._progress(1.0, "writing the recording")
+            self.jobs.progress(1.0, "writing the recording")
             self.write_recording()
 
-        return self._start("finetune", job, "augmenting the demonstration")
+        return self.jobs.start("finetune", job, "augmenting the demonstration")
 
     # -- recording ----------------------------------------------------------------------------
     def write_recording(self) -> Path | None:
         """(Re)write the task's .rrd under out/ when the state changed since the last write."""
         with self._record_lock:
             with self._lock:
-                run, version, path = self.run, self.content, self.recording
-                if run is None or path is None:
+                rec, version, path = self.record, self.content, self.recording
+                if rec is None or path is None:
                     return None
                 if self._recorded == version and path.exists():
                     return path
-                args = dict(
-                    rollout=run.rollout,
-                    demo=run.demo,
-                    result=run.result,
-                    tie=run.tie,
-                    counterfactual=run.counterfactual,
-                    adaptation=run.adaptation,
-                    seed=run.seed,
-                )
-            work.write_recording(path, run.world, run.task, **args)
+            write_recording(
+                path, get_world(rec.world), dataclasses.replace(rec, recording=str(path))
+            )
             with self._lock:
                 self._recorded = version
             return path

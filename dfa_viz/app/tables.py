@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dfa_viz.app.state import View
+from dfa_viz.app.view import View
 from sim.core import Edit, Scene, World
 
 NO_COUNTERFACTUAL = "No counterfactual found — the cause is outside the concept space."
@@ -22,7 +22,7 @@ STATUS = {
 
 
 def status_text(view: View) -> str:
-    run = view.run
+    run = view.record
     text = STATUS[view.stage]
     if run is not None:
         text = f"**Task:** “{run.task.reward.instruction}”  \n{text}"
@@ -34,10 +34,10 @@ def status_text(view: View) -> str:
 
 
 def diagnosis_text(view: View) -> str:
-    run = view.run
-    if run is None or run.result is None:
+    run = view.record
+    if run is None or run.diagnosis is None:
         return "Searching…" if view.stage == "diagnose" else ""
-    res = run.result
+    res = run.diagnosis.result
     if not res.found:
         return (
             f"**{NO_COUNTERFACTUAL}**  \nNo edit of up to {res.max_size} concept changes makes "
@@ -60,10 +60,10 @@ def edit_table(world: World, scene: Scene, edit: Edit) -> str:
 
 
 def results_text(view: View) -> str:
-    run = view.run
+    run = view.record
     if run is None:
         return ""
-    ad = run.adaptation
+    ad, ev = run.adaptation, run.evaluation
     if ad is None:
         if run.unmarked():
             return "Mark " + ", ".join(run.unmarked()) + " first."
@@ -71,10 +71,18 @@ def results_text(view: View) -> str:
     labels = "; ".join(
         f"{lab.slot}.{lab.concept} {'TR' if lab.relevant else 'TI'}" for lab in ad.feedback.labels
     )
+    text = (
+        f"Finetuned on {ad.budget} trajectories: the demonstration and "
+        f"{len(ad.augmented)} variants" + (f" ({labels})" if labels else "") + "."
+    )
+    if ev is not None:
+        text += (
+            f"  \n**Success on {len(ev.before.shifted)} fresh tasks with the shift: "
+            f"{ev.before.on_shift:.0%} → {ev.after.on_shift:.0%}** (on "
+            f"{len(ev.before.overall)} from all you asked for: {ev.before.on_all:.0%} → "
+            f"{ev.after.on_all:.0%})"
+        )
     return (
-        f"Finetuned on 1 demonstration + {ad.n_augmented} augmented"
-        + (f" ({labels})" if labels else "")
-        + f".  \n**Success on 10 fresh tasks from R': {ad.success_before:.0%} → "
-        f"{ad.success_after:.0%}**  \nThe *finetuned* column shows the new policy on this task"
+        text + "  \nThe *finetuned* column shows the new policy on this task"
         f" ({'succeeds' if ad.rollout.success else 'still fails'})."
     )

@@ -1,20 +1,18 @@
 """The four conditions of the paper's finetuning comparison and who picks which concept.
 
-A *user concept* is what a person names when they say "this does not matter": one concept of
-one kind of object. Worlds with several interchangeable slots (DoorKey's lava0..lava2, the
-tabletop's distractor0..distractor1) group them: "lava.presence" covers the presence of every
-lava tile, so "the lava does not matter" is one answer, as it is for a person.
+A condition names a *user concept* (sim.core.UserConcept): what a person names when they say
+"this does not matter", one concept of one kind of object ("lava.presence" covers every lava
+tile, so "the lava does not matter" is one answer, as it is for a person).
 """
 
 from __future__ import annotations
 
-import re
-import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core import PRESENCE, Scene, Task, World
+from policy.variants import stable_int
+from sim.core import Task, UserConcept, World
 
 CONDITIONS = ("nh_random", "baseline_h", "cf_h", "oracle")
 CONDITION_NAMES = {
@@ -24,7 +22,6 @@ CONDITION_NAMES = {
     "oracle": "Oracle",
 }
 SHIFT_KINDS = ("object", "distractor")
-WORLDS = ("nav2d", "doorkey", "tabletop")
 PAPER_BUDGETS = (5, 10, 25, 50, 75, 100)
 
 # How often the paper's users named the right concept (design section 9), as probabilities:
@@ -37,6 +34,8 @@ ACCURACY: dict[tuple[str, str], tuple[float, float]] = {
     ("doorkey", "distractor"): (0.32, 0.88),
     ("tabletop", "distractor"): (0.09, 0.93),
 }
+
+PAPER_WORLDS = tuple(dict.fromkeys(w for w, _ in ACCURACY))  # the worlds the paper measured
 
 # The paper's finetuning success at PAPER_BUDGETS trajectories (design section 9).
 PAPER: dict[tuple[str, str, str], tuple[float, ...]] = {
@@ -80,47 +79,12 @@ def ti_shift(kind: str) -> str:
     return f"{kind}_ti"
 
 
-@dataclass(frozen=True)
-class UserConcept:
-    """One concept as a person names it, and the (slot, concept) pairs it covers."""
-
-    name: str
-    """E.g. "goal.colour" or "lava.presence"."""
-    members: tuple[tuple[str, str], ...]
-    """The (slot, concept) pairs of the concept space it covers (concept may be "presence")."""
-
-    @property
-    def is_presence(self) -> bool:
-        return self.members[0][1] == PRESENCE
-
-
-def kind_of(slot: str) -> str:
-    """The kind of object a slot holds: its name without a trailing number (lava2 -> lava)."""
-    return re.sub(r"\d+$", "", slot)
-
-
-def user_concepts(world: World) -> tuple[UserConcept, ...]:
-    """Every user concept of the world, in the order of its concept space."""
-    groups: dict[str, list[tuple[str, str]]] = {}
-    for slot in world.space.slots:
-        names = ([PRESENCE] if slot.optional else []) + [c.name for c in slot.concepts]
-        for concept in names:
-            groups.setdefault(f"{kind_of(slot.name)}.{concept}", []).append((slot.name, concept))
-    return tuple(UserConcept(name, tuple(members)) for name, members in groups.items())
-
-
 def visible_concepts(world: World, task: Task) -> tuple[UserConcept, ...]:
     """The concepts a person can point at in the test scene: the looks of objects that are
     there, and the presence of any optional object (adding one is always visible). The looks
     of an object that is not in the scene are not something anyone would name."""
-    shown = (in_scene(uc, task.scene) for uc in user_concepts(world))
+    shown = (uc.in_scene(task.scene) for uc in world.space.user_concepts())
     return tuple(uc for uc in shown if uc is not None)
-
-
-def in_scene(concept: UserConcept, scene: Scene) -> UserConcept | None:
-    """The part of a user concept a scene shows: presence, and the looks of present objects."""
-    members = tuple((s, c) for s, c in concept.members if c == PRESENCE or scene.obj(s).present)
-    return UserConcept(concept.name, members) if members else None
 
 
 def concept_named(concepts: tuple[UserConcept, ...], name: str) -> UserConcept:
@@ -133,17 +97,7 @@ def concept_named(concepts: tuple[UserConcept, ...], name: str) -> UserConcept:
 def right_concept(world: World, task: Task) -> str:
     """The name of the user concept the shift generator changed (the task's planted cause)."""
     assert task.cause is not None, f"{task.shift} task has no planted cause"
-    slot, concept = task.cause
-    return f"{kind_of(slot)}.{concept}"
-
-
-def concept_of_change(slot: str, concept: str) -> str:
-    return f"{kind_of(slot)}.{concept}"
-
-
-def stable_int(*parts: object) -> int:
-    """A process-independent integer from names (Python's hash() is salted per process)."""
-    return zlib.crc32("/".join(map(str, parts)).encode())
+    return world.space.user_concept(*task.cause).name
 
 
 def user_rng(world: str, shift: str, seed: int) -> np.random.Generator:

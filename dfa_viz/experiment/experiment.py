@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dfa_viz.experiment.backends import BACKENDS, run_specs
-from dfa_viz.experiment.conditions import CONDITIONS, SHIFT_KINDS, WORLDS
+from dfa_viz.experiment.conditions import CONDITIONS, PAPER_WORLDS, SHIFT_KINDS
 from dfa_viz.experiment.figures import write_plots, write_rrd
 from dfa_viz.experiment.results import ResultsFolder, write_table
 from dfa_viz.experiment.runner import RunSpec, Settings
@@ -19,7 +19,7 @@ from sim.core import UserError
 class Plan:
     """Which runs an experiment consists of (the product of all its lists)."""
 
-    worlds: tuple[str, ...] = WORLDS
+    worlds: tuple[str, ...] = PAPER_WORLDS
     shifts: tuple[str, ...] = SHIFT_KINDS
     conditions: tuple[str, ...] = CONDITIONS
     budgets: tuple[int, ...] = (5, 10, 25, 50, 75, 100)
@@ -27,7 +27,7 @@ class Plan:
 
     def __post_init__(self) -> None:
         for name, values, accepted in (
-            ("world", self.worlds, WORLDS),
+            ("world", self.worlds, PAPER_WORLDS),
             ("shift", self.shifts, SHIFT_KINDS),
             ("condition", self.conditions, CONDITIONS),
         ):

@@ -212,6 +212,32 @@ def beyond_paper(table, world: str, shift: str) -> str | None:
     return f"CF H at 5 trajectories {ours.mean:.2f} vs the paper's CF H at 10: {paper:g} ({met})"
 
 
+def cf_beats_baseline(rows: Sequence[dict[str, str]], world: str, shift: str) -> str | None:
+    """CF H against Baseline H paired over (budget, seed): the mean difference and a one-sided
+    Wilcoxon signed-rank test (None without both conditions)."""
+    from scipy.stats import wilcoxon
+
+    runs = {
+        (r["condition"], int(r["budget"]), int(r["seed"])): float(r["success"])
+        for r in rows
+        if (r["world"], r["shift"]) == (world, shift)
+    }
+    keys = sorted((b, s) for c, b, s in runs if c == "cf_h" and ("baseline_h", b, s) in runs)
+    if not keys:
+        return None
+    cf = [runs[("cf_h", b, s)] for b, s in keys]
+    base = [runs[("baseline_h", b, s)] for b, s in keys]
+    diff = sum(c - b for c, b in zip(cf, base, strict=True)) / len(keys)
+    if all(c == b for c, b in zip(cf, base, strict=True)):
+        return f"CF H - Baseline H over {len(keys)} paired runs: +0.00 (identical; not significant)"
+    p = float(wilcoxon(cf, base, alternative="greater").pvalue)
+    verdict = "significant" if p < 0.05 else "not significant"
+    return (
+        f"CF H - Baseline H over {len(keys)} runs paired by budget and seed: {diff:+.2f}, "
+        f"one-sided Wilcoxon signed-rank p = {p:.2g} ({verdict} at 0.05)"
+    )
+
+
 def _fmt(cell: Cell | None, paper: float | None) -> str:
     ours = "—" if cell is None else f"{cell.mean:.2f}"
     if cell is not None and cell.n > 1:
@@ -223,17 +249,17 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
     """One table per world and shift: our mean ± 95% CI half-width, the paper's in brackets."""
     table = cells(rows)
     seeds = sorted({int(r["seed"]) for r in rows})
+    a = settings.finetuning
     lines = [
         "# Finetuning success versus finetuning trajectories",
         "",
-        f"Mean success on {settings.n_eval} fresh tasks from R' over {len(seeds)} seed(s) "
-        f"± the half-width of its 95% confidence interval (Student t over seeds); the paper's "
-        f"number in brackets. {len(rows)} runs; finetuning max({settings.steps}, "
-        f"{settings.steps_per_trajectory} x budget) steps with "
-        f"{settings.replay_share:.0%} of every batch replayed from the training "
-        f"demonstrations; variants from {SOURCES[settings.sources]}; fresh tasks in the "
-        f"{settings.layouts} layouts; counterfactual "
-        f"search up to {settings.max_size} changes.",
+        f"Mean success on {a.n_eval} fresh tasks that carry the test task's shift (its cause "
+        f"as in the test task, in the training layouts) over {len(seeds)} seed(s) ± the "
+        "half-width of its 95% confidence interval (Student t over seeds); the paper's number "
+        f"in brackets. {len(rows)} runs; finetuning max({a.steps}, {a.steps_per_trajectory} "
+        f"x budget) steps with {a.replay_share:.0%} of every batch replayed from the training "
+        f"demonstrations; variants from {SOURCES[a.sources]}; counterfactual search up to "
+        f"{settings.max_size} changes.",
     ]
     for world, shift in panels(table):
         budgets = sorted({b for w, s, _, b in table if (w, s) == (world, shift)})
@@ -252,14 +278,25 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
                 for b in budgets
             ]
             lines.append(f"| {CONDITION_NAMES[c]} | " + " | ".join(cols) + " |")
-        before = [
-            float(r["success_before"]) for r in rows if (r["world"], r["shift"]) == (world, shift)
-        ]
+        mine = [r for r in rows if (r["world"], r["shift"]) == (world, shift)]
+        before = sum(float(r["success_before"]) for r in mine) / len(mine)
+        before_all = sum(float(r["success_all_before"]) for r in mine) / len(mine)
+        after_all = {
+            c: sum(float(r["success_all"]) for r in mine if r["condition"] == c)
+            / max(1, sum(r["condition"] == c for r in mine))
+            for c in CONDITIONS
+            if any(r["condition"] == c for r in mine)
+        }
+        overall = ", ".join(f"{CONDITION_NAMES[c]} {v:.2f}" for c, v in after_all.items())
         lines += [
             "",
-            f"Base policy before finetuning: {sum(before) / len(before):.2f}. "
+            f"Base policy before finetuning: {before:.2f} on the shift ({before_all:.2f} over "
+            f"all of R'; after finetuning, mean over budgets: {overall}). "
             f"Ordering: {ordering(table, world, shift, budgets)}.",
         ]
+        test = cf_beats_baseline(rows, world, shift)
+        if test:
+            lines += ["", f"{test}."]
         goal = beyond_paper(table, world, shift)
         if goal:
             lines += ["", f"Beyond the paper: {goal}."]

@@ -1,24 +1,20 @@
 """One run of the finetuning comparison: world, shift, condition, budget, seed -> success.
 
-A run is a pure function of its spec and the experiment's settings (and the cached base
+A run is a pure function of its spec and the experiment's settings (and the committed base
 policy): the same spec gives the same row on any worker, process or machine. Randomness comes
 only from seeded generators keyed by the spec's names, never from the order runs execute in.
 
-What one run does:
+A run is the loop's own steps (dfa_viz.loop) with a simulated user in the paper's place:
 1. The task: the first `<shift>_ti` test task of the seed's stream that the base policy fails
    (policy.failing_test_task), and the scripted expert's demonstration of it.
-2. The concept (conditions.choose): random per trajectory (NH-random), the right one
-   (Oracle), or a simulated user's pick (Baseline H; CF H after the real counterfactual search
-   on this task with the base policy).
-3. The finetuning set: the demonstration plus budget - 1 distinct variants over the concept,
-   taken in turn from the base policy's 10 training demonstrations and the user's
-   demonstration (augmentation.sources), cycled to exactly `budget` trajectories when the
-   concept has fewer variants.
-4. Finetune a copy of the base policy (seeded by the run's seed) on that set for
-   max(steps, steps_per_trajectory * budget) steps, with its own
-   training demonstrations replayed as `replay_share` of every batch, and evaluate it on
-   `n_eval` fresh tasks from R' placed in the training layouts (the same tasks for every
-   condition and budget of the seed).
+2. The concept (conditions.choose): random per trajectory (NH-random), the right one (Oracle),
+   or a simulated user's pick (Baseline H; CF H after the loop's diagnosis on this task).
+3. The feedback: that concept marked task-irrelevant, with what a person who knows R' accepts
+   (policy.variants.acceptable_if_irrelevant), exactly as the simulated user of `dfa run`
+   marks it; NH-random instead augments a random concept, any value, per trajectory.
+4. loop.adapt with the settings' AdaptConfig at this budget (the same call `dfa run` and the
+   page make), then policy.evaluate.score on the same fresh tasks for every condition and
+   budget of the seed: carrying the shift (`success`) and from all of R' (`success_all`).
 """
 
 from __future__ import annotations
@@ -27,23 +23,20 @@ import functools
 import os
 import socket
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
-from dfa_viz.experiment import augmentation as aug
+from dfa_viz.configs import AdaptConfig, Finetuning
 from dfa_viz.experiment.conditions import (
     CONDITIONS,
     SHIFT_KINDS,
-    UserConcept,
     choose,
     concept_named,
-    concept_of_change,
     right_concept,
     ti_shift,
     visible_concepts,
 )
-from policy.evaluate import N_EVAL
-from policy.train import FINETUNE
-from sim.core import Task, Trajectory
+from policy.evaluate import Score
+from sim.core import Feedback, Label, Task, Trajectory, UserConcept, World
 
 # the columns of runs.csv, in order; the first five are a run's key
 COLUMNS = (
@@ -54,6 +47,8 @@ COLUMNS = (
     "seed",
     "success",
     "success_before",
+    "success_all",
+    "success_all_before",
     "task_seed",
     "right_concept",
     "chosen_concept",
@@ -69,28 +64,16 @@ KEY = COLUMNS[:5]
 class Settings:
     """What every run of one experiment shares; a results folder keeps to one set of these."""
 
-    n_eval: int = N_EVAL
-    """Fresh tasks from R' each finetuned policy is evaluated on (the paper's 10)."""
-    steps: int = FINETUNE.steps
-    """Fewest finetuning gradient steps (batch FINETUNE.batch_size, learning rate FINETUNE.lr)."""
-    steps_per_trajectory: int = 10
-    """Steps per finetuning trajectory above that: a run takes max(steps, this * budget), so
-    a large budget gets as many passes over its data as a small one."""
+    finetuning: Finetuning = field(default_factory=Finetuning)
+    """How each run finetunes and scores (its budget is the run's own)."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""
-    replay_share: float = 0.5
-    """Share of every finetuning batch replayed from the base policy's training demonstrations."""
-    layouts: str = "train"
-    """Where the fresh evaluation tasks put the objects (World.fresh_tasks)."""
-    sources: str = "all"
-    """What variants are made from: "all" (the training demonstrations and the user's) or
-    "user" (the user's demonstration only, as in the paper)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
 
-    def steps_for(self, budget: int) -> int:
-        return max(self.steps, self.steps_per_trajectory * budget)
+    def config(self, budget: int) -> AdaptConfig:
+        return AdaptConfig(budget, self.finetuning)
 
 
 @dataclass(frozen=True, order=True)
@@ -123,8 +106,8 @@ class Prepared:
     demo: Trajectory
     known: tuple[Trajectory, ...]
     """The base policy's training demonstrations (sources of variants, and replayed)."""
-    success_before: float
-    """The base policy's success on the same fresh tasks the finetuned ones are scored on."""
+    before: Score
+    """The base policy on the same fresh tasks the finetuned ones are scored on."""
     visible: tuple[UserConcept, ...]
     right: str
 
@@ -148,119 +131,145 @@ def _known(world_name: str) -> tuple[Trajectory, ...]:
 
 
 @functools.lru_cache(maxsize=8)
-def prepare(
-    world_name: str, shift: str, seed: int, n_eval: int, layouts: str = "train"
-) -> Prepared:
-    from policy import evaluate, failing_test_task
+def prepare(world_name: str, shift: str, seed: int, n_eval: int) -> Prepared:
+    from policy import failing_test_task
+    from policy.evaluate import score
     from sim import get_world
 
     world, policy = get_world(world_name), _policy(world_name)
     task, _ = failing_test_task(world, policy, ti_shift(shift), seed)
     demo = world.demonstrate(task)
-    before = evaluate(world, policy, task, n=n_eval, seed=seed, layouts=layouts)
     return Prepared(
         task,
         demo,
         _known(world_name),
-        before,
+        score(world, policy, task, n=n_eval, seed=seed),
         visible_concepts(world, task),
         right_concept(world, task),
     )
 
 
 @functools.lru_cache(maxsize=8)
-def offered(world_name: str, shift: str, seed: int, n_eval: int, layouts: str, max_size: int):
-    """The counterfactual search on the task: (concepts of its best edit, the edit as text)."""
-    from search import SearchConfig, counterfactual_search
+def offered(world_name: str, shift: str, seed: int, n_eval: int, max_size: int):
+    """The loop's diagnosis of the task: (user concepts of its best edit, the edit as text)."""
+    from dfa_viz.loop import diagnose
+    from search import SearchConfig
     from sim import get_world
 
-    world, prep = get_world(world_name), prepare(world_name, shift, seed, n_eval, layouts)
-    result = counterfactual_search(
+    world, prep = get_world(world_name), prepare(world_name, shift, seed, n_eval)
+    diagnosis = diagnose(
         world,
         _policy(world_name),
-        prep.task.scene,
+        prep.task,
         prep.demo,
         config=SearchConfig.for_world(world, max_size=max_size),
     )
-    if result.best is None:
+    edit = diagnosis.edit
+    if edit is None:
         return (), "none"
-    edit = result.best.edit
-    names = tuple(dict.fromkeys(concept_of_change(c.slot, c.concept) for c in edit.ordered))
+    space = world.space
+    names = tuple(dict.fromkeys(space.user_concept(c.slot, c.concept).name for c in edit.ordered))
     return names, str(edit)
+
+
+def feedback_over(world: World, task: Task, concept: UserConcept) -> Feedback:
+    """The user concept marked task-irrelevant, as the simulated user of `dfa run` marks a
+    concept the counterfactual changes (a label on one of its slots speaks for the kind)."""
+    from policy.variants import acceptable_if_irrelevant
+
+    slot, name = concept.members[0]
+    acceptable = acceptable_if_irrelevant(world, task.reward, slot, name)
+    return Feedback((Label(slot, name, False, acceptable),))
+
+
+def nh_random_variants(world: World, prep: Prepared, config: AdaptConfig, seed: int):
+    """NH-random: budget - 1 variants, the i-th over a concept drawn uniformly from the
+    visible ones (any instantiation), from the sources in turn."""
+    import numpy as np
+
+    from policy import variants as A
+
+    srcs = A.sources(prep.task, prep.demo, prep.known if config.finetuning.sources == "all" else ())
+    uninformed = [A.over(world, prep.task, uc, informed=False) for uc in prep.visible]
+    rng = np.random.default_rng([seed, A.stable_int("nh_random", world.name, prep.task.shift)])
+    picks: list[A.Irrelevant] = []
+
+    def pick(i: int) -> A.Irrelevant:
+        while len(picks) <= i:
+            picks.append(uninformed[int(rng.integers(len(uninformed)))])
+        return picks[i]
+
+    chosen = A.variants(
+        world,
+        srcs,
+        pick,
+        config.budget - 1,
+        seed=seed,
+        like=prep.task.scene,
+        n_concepts=len(uninformed),
+    )
+    return A.render(world, srcs, chosen)
 
 
 def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]:
     """Run one spec; returns its runs.csv row (values as strings) plus its wall time
     `duration_s`, the CPU time of this process `cpu_s` (what the run costs on an idle core)
     and `host` (host:pid of the worker)."""
-    from policy import evaluate, finetune
-    from policy.train import TrainConfig
+    from dfa_viz.loop import adapt
+    from policy.evaluate import score
     from sim import get_world
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     world = get_world(spec.world)
-    prep = prepare(spec.world, spec.shift, spec.seed, settings.n_eval, settings.layouts)
+    config = settings.config(spec.budget)
+    n_eval = settings.finetuning.n_eval
+    prep = prepare(spec.world, spec.shift, spec.seed, n_eval)
     cf_concepts, cf_edit = None, ""
     if spec.condition == "cf_h":
-        cf_concepts, cf_edit = offered(
-            spec.world,
-            spec.shift,
-            spec.seed,
-            settings.n_eval,
-            settings.layouts,
-            settings.max_size,
-        )
-    names = tuple(c.name for c in prep.visible)
+        cf_concepts, cf_edit = offered(spec.world, spec.shift, spec.seed, n_eval, settings.max_size)
     choice = choose(
         spec.condition,
         world=spec.world,
         shift=spec.shift,
         seed=spec.seed,
         right=prep.right,
-        visible=names,
+        visible=tuple(c.name for c in prep.visible),
         offered=cf_concepts,
     )
-    n = spec.budget - 1
-    srcs = (
-        aug.sources(prep.task, prep.demo, prep.known)
-        if settings.sources == "all"
-        else [aug.Source(prep.task, prep.demo)]
-    )
     if choice.concept is None:
-        ops = aug.random_concept_variants(world, srcs, prep.visible, n, seed=spec.seed)
+        feedback, augmented = Feedback(), nh_random_variants(world, prep, config, spec.seed)
     else:
         concept = concept_named(prep.visible, choice.concept)
-        ops = aug.variants_for_concept(world, srcs, concept, n, informed=True, seed=spec.seed)
-    variants = aug.render_from_sources(world, srcs, ops)
-    demos = aug.fill_budget(prep.demo, variants, spec.budget)
-    steps = settings.steps_for(spec.budget)
-    config = TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, spec.seed)
-    tuned, losses = finetune(
+        feedback, augmented = feedback_over(world, prep.task, concept), None
+    adaptation = adapt(
         world,
         _policy(spec.world),
-        demos,
+        prep.task,
+        prep.demo,
+        feedback,
         config=config,
-        replay=prep.known,
-        replay_share=settings.replay_share,
+        seed=spec.seed,
+        known=prep.known,
+        augmented=augmented,
     )
-    success = evaluate(
-        world, tuned, prep.task, n=settings.n_eval, seed=spec.seed, layouts=settings.layouts
-    )
+    after = score(world, adaptation.policy, prep.task, n=n_eval, seed=spec.seed)
     row: dict[str, object] = {
         "world": spec.world,
         "shift": spec.shift,
         "condition": spec.condition,
         "budget": spec.budget,
         "seed": spec.seed,
-        "success": f"{success:.4g}",
-        "success_before": f"{prep.success_before:.4g}",
+        "success": f"{after.on_shift:.4g}",
+        "success_before": f"{prep.before.on_shift:.4g}",
+        "success_all": f"{after.on_all:.4g}",
+        "success_all_before": f"{prep.before.on_all:.4g}",
         "task_seed": prep.task.seed,
         "right_concept": prep.right,
         "chosen_concept": choice.concept or "random",
         "correct": int(choice.correct),
         "cf_edit": cf_edit,
-        "n_distinct": 1 + len(variants),
-        "final_loss": f"{losses[-1]:.6g}",
+        "n_distinct": 1 + len(adaptation.augmented),
+        "final_loss": f"{adaptation.losses[-1]:.6g}",
     }
     assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
     row = {k: str(v) for k, v in row.items()}

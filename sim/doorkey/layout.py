@@ -50,7 +50,7 @@ SPACE = ConceptSpace(
         Slot("key", (COLOUR,)),
         Slot("door", (COLOUR,)),
         Slot("goal", (COLOUR,)),
-        *(Slot(s, (LAVA_COLOUR,), optional=True) for s in LAVA_SLOTS),
+        *(Slot(s, (LAVA_COLOUR,), optional=True, kind="lava") for s in LAVA_SLOTS),
     )
 )
 SLOT_NAMES = OBJ_SLOTS + LAVA_SLOTS

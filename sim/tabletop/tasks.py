@@ -66,7 +66,7 @@ def space(colours: Sequence[str]) -> ConceptSpace:
         (
             Slot("object", (shape, colour)),
             Slot("goal", (shape, colour)),
-            *(Slot(d, (shape, colour), optional=True) for d in DISTRACTORS),
+            *(Slot(d, (shape, colour), optional=True, kind="distractor") for d in DISTRACTORS),
         )
     )
 

@@ -24,9 +24,9 @@ def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
     page.get_by_role("button", name="Failed").click()
     expect(page.get_by_role("button", name="turn left")).to_be_visible()
 
-    run = app.state.run
-    expert = run.world.demonstrate(run.task)
-    n = compared_steps(run.world, expert)  # steps until the goal
+    run, world = app.state.record, app.state.snapshot().world
+    expert = world.demonstrate(run.task)
+    n = compared_steps(world, expert)  # steps until the goal
     actions = [int(a) for a in expert.actions[:n]]
     page.get_by_text("Show what you wanted").click()  # focus the page, not an input
     for i, a in enumerate(actions[:-1]):
@@ -39,21 +39,21 @@ def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
     page.get_by_text("edits tried").first.wait_for()
     page.screenshot(path=shots / "1-diagnosis.png")
 
-    result = app.state.run.result
+    result = app.state.record.diagnosis.result
     if result.found and len(result.counterfactuals) > 1:  # choose the second minimal edit
         second = result.counterfactuals[1].edit
         page.get_by_role("combobox", name="minimal edit").click()
         page.get_by_role("option", name=f"2. {second}").click()
         for ch in second.ordered:  # the feedback controls follow the chosen edit
             expect(page.get_by_text(f"{ch.slot}.{ch.concept}: {ch.old} → {ch.new}")).to_be_visible()
-        assert app.state.run.tie == 1
+        assert app.state.record.diagnosis.tie == 1
         page.screenshot(path=shots / "2-second-tie.png")
 
-    demo = app.state.run.demo
+    demo = app.state.record.demo
     assert demo.success
     assert [int(a) for a in demo.actions[:n]] == actions
     assert demo.scenes[: n + 1] == expert.scenes[: n + 1]
-    assert app.state.run.demo_source == "keys"
+    assert app.state.record.demo_source == "keys"
 
 
 def _plane_box(page, grey=(128, 128, 128), tol=12):
@@ -81,7 +81,7 @@ def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
     page.get_by_role("button", name="Load task").click()  # tabletop, distractor_ti, seed 0
     page.get_by_role("button", name="Failed").click()
     ui.wait_for_text(page, "Click the object to pick")
-    task = app.state.run.task
+    task = app.state.record.task
     x0, y0, x1, y1 = _plane_box(page)
     for slot in ("object", "goal"):  # pick the object, place it on the goal
         x, y = task.scene.obj(slot).pos[:2]
@@ -96,8 +96,8 @@ def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
     page.wait_for_timeout(1000)  # let the frames and the 3D meshes follow
     page.screenshot(path=shots / "1-diagnosis.png")
 
-    run = app.state.run
-    expert = run.world.expert_action(task, task.scene)  # (4,) pick xy, place xy
+    run = app.state.record
+    expert = app.state.snapshot().world.expert_action(task, task.scene)  # (4,) pick xy, place xy
     assert run.demo_source == "clicks"
     assert np.abs(run.demo.actions[0] - expert).max() < 0.02  # within 2 cm of the centres
     assert run.demo.success

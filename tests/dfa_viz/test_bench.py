@@ -1,6 +1,6 @@
 import re
 
-from dfa_viz.bench_costs import cost_rows, render_throughput
+from dfa_viz.bench.costs import cost_rows, render_throughput
 
 
 def test_render_throughput_compares_like_with_like():

@@ -134,17 +134,18 @@ def test_size_one_search_is_interactive(world, policy, failing, one_thread):
 
 @pytest.mark.parametrize("shift", ["object_ti", "distractor_ti"])
 def test_feedback_and_finetuning_raise_success(world, policy, failing, shift, learns):
-    """Measured with the committed base policy (5 seeds): object_ti 0.40 -> 1.0, distractor_ti
-    0.74 -> 0.98."""
+    """Measured with the committed base policy (5 seeds, shifted success): object_ti
+    0.08 -> 1.0, distractor_ti 0.04 -> 1.0."""
     pairs = []
     for seed in range(5):
         task, _ = failing(shift, seed)
-        report = run_loop(world, policy, task, SimulatedUser(world, seed=seed), seed=seed)
-        assert report.failed and report.search.found
-        assert report.feedback.labels and not any(lab.relevant for lab in report.feedback.labels)
-        assert report.n_augmented > 0
-        pairs.append((report.success_before, report.success_after))
-    learns(pairs, min_after=0.85, min_gain=0.12)
+        record = run_loop(world, policy, task, SimulatedUser(world, seed=seed), seed=seed)
+        assert record.failed and record.diagnosis.result.found
+        labels = record.feedback.labels
+        assert labels and not any(lab.relevant for lab in labels)
+        assert record.adaptation.augmented
+        pairs.append((record.evaluation.before.on_shift, record.evaluation.after.on_shift))
+    learns(pairs, min_after=0.85, min_gain=0.5)
 
 
 def _chunks(path):
@@ -162,7 +163,7 @@ def test_dfa_run_json_writes_a_lossless_recording(world, policy, failing, tmp_pa
     task, rollout = failing("object_ti", 0)
     (change,) = report["counterfactual"][0]
     assert (change["slot"], change["concept"]) == task.cause
-    assert report["success_after"] - report["success_before"] >= 0.3  # 0.4 -> 1.0 measured
+    assert report["success_after"] - report["success_before"] >= 0.5  # 0.0 -> 1.0 measured
 
     path = tmp_path / "doorkey-object_ti-seed0.rrd"
     assert report["recording"] == str(path)

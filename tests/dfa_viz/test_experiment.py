@@ -8,26 +8,18 @@ import pytest
 import rerun as rr
 from PIL import Image
 
-from dfa_viz.experiment import augmentation as aug
-from dfa_viz.experiment.cli import experiment_main
-from dfa_viz.experiment.conditions import (
-    ACCURACY,
-    PAPER,
-    PAPER_BUDGETS,
-    choose,
-    concept_named,
-    user_concepts,
-    visible_concepts,
-)
+from dfa_viz.cli import main
+from dfa_viz.configs import Finetuning
+from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
 from dfa_viz.experiment.experiment import Plan, run_experiment
-from dfa_viz.experiment.results import ResultsFolder, summarise
-from dfa_viz.experiment.runner import COLUMNS, Settings, prepare
+from dfa_viz.experiment.results import ResultsFolder, cf_beats_baseline, summarise
+from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
 from sim import get_world
 from sim.core import UserError
 
 # a tiny experiment: one world, one shift, every condition, two budgets, one seed
 PLAN = Plan(worlds=("nav2d",), shifts=("object",), budgets=(2, 5), seeds=(0,))
-SETTINGS = Settings(steps=40)
+SETTINGS = Settings(finetuning=Finetuning(steps=40, steps_per_trajectory=1))
 N_RUNS = 4 * 2
 
 
@@ -107,7 +99,7 @@ def test_table_plot_and_recording(local_run):
 @pytest.mark.slow
 def test_other_settings_do_not_mix_into_a_folder(local_run):
     with pytest.raises(UserError, match="another --out"):
-        ResultsFolder(local_run.out, Settings(steps=SETTINGS.steps + 1))
+        ResultsFolder(local_run.out, Settings(finetuning=Finetuning(steps=41)))
 
 
 @pytest.mark.slow
@@ -115,24 +107,34 @@ def test_cli_resumes_a_finished_folder_and_rewrites_its_reports(local_run, tmp_p
     out = tmp_path / "again"
     shutil.copytree(local_run.out, out)
     (out / "table.md").unlink()
-    args = ["q2", "--world", "nav2d", "--shift", "object", "--budgets", "2", "5", "--seeds", "1"]
-    experiment_main([*args, "--steps", str(SETTINGS.steps), "--out", str(out), "--no-progress"])
+    args = ["experiment", "q2", "--world", "nav2d", "--shift", "object", "--budgets", "2", "5"]
+    args += ["--seeds", "1", "--steps", "40", "--steps-per-trajectory", "1"]
+    assert main([*args, "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out
     assert f"{N_RUNS} runs planned: {N_RUNS} already in {out}, 0 run now" in printed
     assert (out / "table.md").is_file()
 
 
-def test_cli_rejects_bad_numbers(tmp_path):
-    with pytest.raises(UserError, match="budgets"):
-        experiment_main(["q2", "--budgets", "0", "--out", str(tmp_path)])
-    with pytest.raises(UserError, match="--seeds"):
-        experiment_main(["q2", "--seeds", "0", "--out", str(tmp_path)])
-    with pytest.raises(UserError, match="--replay-share"):
-        experiment_main(["q2", "--replay-share", "1", "--out", str(tmp_path)])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--budgets", "0"], "budgets"),
+        (["--seeds", "0"], "--seeds"),
+        (["--replay-share", "1"], "--replay-share"),
+        (["--steps", "0"], "--steps must be at least 1"),
+    ],
+)
+def test_cli_rejects_bad_numbers(tmp_path, capsys, args, message):
+    assert main(["experiment", "q2", *args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_cli_rejects_unknown_worlds_and_experiments(tmp_path):
     with pytest.raises(SystemExit):
-        experiment_main(["q2", "--layouts", "anywhere", "--out", str(tmp_path)])
+        main(["experiment", "q2", "--world", "atlantis", "--out", str(tmp_path)])
     with pytest.raises(SystemExit):
-        experiment_main(["q2", "--world", "atlantis", "--out", str(tmp_path)])
+        main(["experiment", "q9", "--out", str(tmp_path)])
 
 
 # -- the parts ------------------------------------------------------------------------------------
@@ -145,7 +147,7 @@ def test_the_paper_numbers_are_all_there():
 
 
 def test_interchangeable_slots_make_one_user_concept():
-    names = {uc.name: uc.members for uc in user_concepts(get_world("doorkey"))}
+    names = {uc.name: uc.members for uc in get_world("doorkey").space.user_concepts()}
     assert names["lava.presence"] == (
         ("lava0", "presence"),
         ("lava1", "presence"),
@@ -178,63 +180,36 @@ def test_simulated_users_are_right_at_the_paper_rate():
     assert choose("nh_random", seed=0, **kw).concept is None
 
 
-def test_variants_are_distinct_and_a_larger_budget_extends_a_smaller_one(nav, nav_policy):
-    prep = prepare("nav2d", "distractor", 0, 10)
-    srcs = aug.sources(prep.task, prep.demo, prep.known)
-    concept = concept_named(prep.visible, "distractor.presence")
-    kw = dict(informed=True, seed=3)
-    few = aug.variants_for_concept(nav, srcs, concept, 4, **kw)
-    many = aug.variants_for_concept(nav, srcs, concept, 1000, **kw)
-    assert many[:4] == few and len(many) > 100
-    scenes = [aug.transform(srcs[k].task.scene, ops) for k, ops in many]
-    assert len(set(scenes)) == len(scenes)
-    assert not {s.task.scene for s in srcs} & set(scenes), "no variant is a source scene"
-    # small budgets spread over layouts: the first variants come from different sources
-    assert len({k for k, _ in few}) == 4
-    trajs = aug.render_from_sources(nav, srcs, few)
-    for (k, _), t in zip(few, trajs, strict=True):
-        np.testing.assert_array_equal(t.actions, srcs[k].demo.actions)
-        assert t.observations.shape == srcs[k].demo.observations.shape
-    filled = aug.fill_budget(prep.demo, trajs, 11)
-    assert len(filled) == 11 and filled[0] is prep.demo and filled[5] is prep.demo
-
-
-def test_sources_put_unseen_layouts_first(nav, nav_policy):
-    prep = prepare("nav2d", "object", 0, 10)
-    srcs = aug.sources(prep.task, prep.demo, prep.known)
-    assert len(srcs) == len(prep.known) + 1
-    user = [s.demo for s in srcs].index(prep.demo)
-    firsts = [s.task.scene for s in srcs[:user]]
-    assert user >= 5
-    for i, a in enumerate(firsts):
-        assert not aug.same_layout(a, prep.task.scene)
-        assert not any(aug.same_layout(a, b) for b in firsts[:i])
-    # every source keeps the test task's R' and its own scene
-    assert all(s.task.reward == prep.task.reward for s in srcs)
-    assert all(s.task.scene == s.demo.scenes[0] for s in srcs)
-
-
 def test_random_concepts_cover_the_visible_ones(nav, nav_policy):
+    from dfa_viz.configs import AdaptConfig
+
     prep = prepare("nav2d", "distractor", 1, 10)
-    srcs = aug.sources(prep.task, prep.demo, prep.known)
-    picks = aug.random_concept_variants(nav, srcs, prep.visible, 60, seed=1)
-    assert len(picks) == 60
-    assert picks[:20] == aug.random_concept_variants(nav, srcs, prep.visible, 20, seed=1)
-    assert picks != aug.random_concept_variants(nav, srcs, prep.visible, 60, seed=2)
+    many = nh_random_variants(nav, prep, AdaptConfig(budget=61), seed=1)
+    few = nh_random_variants(nav, prep, AdaptConfig(budget=21), seed=1)
+    assert len(many) == 60
+    assert [t.scenes for t in many[:20]] == [t.scenes for t in few]
+    other = nh_random_variants(nav, prep, AdaptConfig(budget=61), seed=2)
+    assert [t.scenes for t in many] != [t.scenes for t in other]
 
 
-def test_grouped_presence_variants_draw_from_a_huge_product():
-    world = get_world("doorkey")
-    task = world.test_task("distractor_ti", 0)
-    demo = world.demonstrate(task)
-    concept = concept_named(visible_concepts(world, task), "lava.presence")
-    srcs = [aug.Source(task, demo)]
-    variants = aug.variants_for_concept(world, srcs, concept, 30, informed=True, seed=0)
-    assert len(variants) == 30
-    for _, ops in variants:
-        scene = aug.transform(task.scene, ops)
-        cells = [o.pos for o in scene.objects if o.present and o.slot.startswith("lava")]
-        assert len(cells) == len(set(cells)), "no two lava tiles on one cell"
+def test_cf_h_against_baseline_h_is_paired_over_budget_and_seed():
+    rows = [
+        {
+            "world": "nav2d",
+            "shift": "object",
+            "condition": c,
+            "budget": str(b),
+            "seed": str(s),
+            "success": str(v),
+        }
+        for c, v in (("cf_h", 0.9), ("baseline_h", 0.4))
+        for b in (5, 10)
+        for s in range(4)
+    ]
+    text = cf_beats_baseline(rows, "nav2d", "object")
+    assert "over 8 runs paired by budget and seed: +0.50" in text and "(significant" in text
+    same = [dict(r, success="0.5") for r in rows]
+    assert "identical; not significant" in cf_beats_baseline(same, "nav2d", "object")
 
 
 def test_confidence_interval():

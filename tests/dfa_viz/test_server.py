@@ -295,13 +295,14 @@ def _an_address_of_this_machine() -> str | None:
 SERVER_LOOPS = """
 import json, os, sys, gc
 from dfa_viz.app.server import open_state, start, wait_idle
-from sim.core import PRESENCE
+from dfa_viz.configs import AdaptConfig, Finetuning
 
 def rss_mb():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
-state = open_state(session=sys.argv[1], out=sys.argv[2], finetune_steps=20)
+quick = AdaptConfig(budget=5, finetuning=Finetuning(steps=20))
+state = open_state(session=sys.argv[1], out=sys.argv[2], adapt=quick)
 app = start(port=int(sys.argv[3]), state=state)
 rss, threads = [], []
 try:
@@ -313,9 +314,9 @@ try:
         state.judge(True)
         assert state.demonstrate(expert=True)
         wait_idle(state, timeout_s=300)
-        run = state.run
+        run = state.record
         for c in run.edit.ordered if run.edit is not None else ():
-            values = run.world.space.values(c.slot, c.concept)
+            values = state.snapshot().world.space.values(c.slot, c.concept)
             state.mark(c.slot, c.concept, relevant=False, acceptable=tuple(values))
         assert state.finetune()
         wait_idle(state, timeout_s=300)
@@ -323,7 +324,7 @@ try:
         gc.collect()
         rss.append(rss_mb())
         threads.append(len(os.listdir("/proc/self/task")))
-    lists = any(isinstance(v, list) for e in state.session.events for v in e.values())
+    lists = bool(state.session.replay())  # replayed once at open, then no event is kept
 finally:
     app.stop()
 print(json.dumps({"rss": rss, "threads": threads, "lists": lists}))
@@ -356,4 +357,4 @@ def test_one_server_stays_within_bounded_memory_over_many_loops(tmp_path):
     report = ", ".join(f"{r:.0f}" for r in rss)
     assert late - warm < 20.0, f"resident MB per loop: {report}"
     assert threads[-1] <= threads[4], f"threads per loop: {threads}"
-    assert not out["lists"]  # the session keeps no candidate lists in memory
+    assert not out["lists"]  # the session keeps no events in memory

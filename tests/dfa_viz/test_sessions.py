@@ -11,7 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dfa_viz.app import events as E
 from dfa_viz.app.sessions import LOG, Session, SessionError, read_events
+from dfa_viz.configs import AdaptConfig, Finetuning
 from sim import WORLDS
 from sim.core import Obj, Scene, Trajectory
 from sim.core.task import MAX_SEED
@@ -41,31 +43,87 @@ TASK = json.dumps(
 
 def test_appends_are_on_disk_and_resume(tmp_path):
     s = Session.open(tmp_path / "s", world="nav2d")
-    s.append("task", world="nav2d", shift="object_ti", seed=0, task_seed=3)
-    s.append("judgement", failed=True)
+    assert s.append(E.TaskLoaded("nav2d", "object_ti", 0, 3)) == 2
+    assert s.append(E.Judged(True)) == 3
     s.close()
     lines = (tmp_path / "s" / LOG).read_text().splitlines()
     assert [json.loads(x)["type"] for x in lines] == ["session", "task", "judgement"]
     again = Session.open(tmp_path / "s", world="doorkey")
     assert again.world == "nav2d"  # the session's own world wins
-    assert [e["type"] for e in again.events] == ["session", "task", "judgement"]
-    assert [e["_line"] for e in again.events] == [1, 2, 3]
+    assert again.replay() == [(2, E.TaskLoaded("nav2d", "object_ti", 0, 3)), (3, E.Judged(True))]
+    assert again.replay() == []  # handed out once: no event stays in memory
     again.close()
 
 
-def test_events_in_memory_keep_no_lists_once_applied(tmp_path):
-    s = Session.open(tmp_path / "s", world="nav2d")
-    tried = [{"edit": [], "distances": [0.5] * 20, "dropped_at": None}] * 50
-    ev = s.append("search", size=None, max_size=2, counterfactuals=[], tried=tried)
-    assert ev["tried"] == tried  # the caller gets the whole event ...
-    assert s.events[-1] == {k: v for k, v in ev.items() if k not in ("tried", "counterfactuals")}
-    s.close()
-    again = Session.open(tmp_path / "s", world="nav2d")
-    assert again.events[-1]["tried"] == tried  # ... and so does a replay, until it is done
-    again.forget_details()
-    assert [e["_line"] for e in again.events] == [1, 2] and "tried" not in again.events[-1]
-    assert json.loads((tmp_path / "s" / LOG).read_text().splitlines()[1])["tried"] == tried
-    again.close()
+def test_typed_events_round_trip_through_json():
+    from dfa_viz.configs import AdaptConfig
+    from policy.evaluate import Score
+    from search import SearchResult
+    from sim.core import Feedback, Label
+
+    label = Label("goal", "shape", False, ("X", "square"))
+    events = [
+        E.TaskLoaded("doorkey", "distractor_ti", 3, 601),
+        E.Judged(False),
+        E.Demonstrated("demo-0004.npz", "keys"),
+        E.Searched(SearchResult((), (), None, 2, complete=False)),
+        E.TieChosen(1),
+        E.Marked(label),
+        E.Marked(Label("distractor", "presence", True)),
+        E.Finetuned(
+            Feedback((label,)),
+            24,
+            (0.5, 0.25),
+            "finetuned-0009.npz",
+            "policy-0009",
+            AdaptConfig(budget=7),
+            Score((True, False), (True, True)),
+            Score((True, True), (True, True)),
+        ),
+    ]
+    for ev in events:
+        line = json.dumps({"type": ev.TYPE, **ev.to_json()}, allow_nan=False)
+        assert E.from_json(json.loads(line)) == ev, ev
+
+
+def test_a_finetune_event_of_an_older_session_still_loads():
+    """Written before scores and the adaptation's settings were kept."""
+    old = {
+        "type": "finetune",
+        "feedback": [{"slot": "goal", "concept": "shape", "label": "TI", "acceptable": ["X"]}],
+        "n_augmented": 3,
+        "losses": [0.1, 0.05],
+        "success_before": 0.5,
+        "success_after": 1.0,
+        "rollout_file": "finetuned-0006.npz",
+        "policy_dir": "policy-0006",
+        "time": "2026-11-30T10:00:00",
+    }
+    ev = E.from_json(old)
+    assert isinstance(ev, E.Finetuned) and ev.before is None and ev.config is None
+    assert ev.n_augmented == 3 and ev.losses == (0.1, 0.05)
+
+
+def test_applying_events_needs_no_threads_or_browser(nav, nav_policy):
+    """Each event returns a new record; a precondition not met is a UserError."""
+    from dfa_viz.loop import RunRecord
+    from sim.core import UserError
+
+    task = nav.test_task("object_ti", 1)
+    demo = nav.demonstrate(task)
+    rebuild = E.Rebuild(
+        policy=lambda w: nav_policy,
+        trajectory=lambda name: demo,
+        checkpoint=lambda name, w: nav_policy,
+    )
+    r = E.apply(None, E.TaskLoaded("nav2d", "object_ti", 0, 1), rebuild)
+    assert isinstance(r, RunRecord) and r.stage == "judge" and r.task == task
+    with pytest.raises(UserError, match="the loop is at 'judge'"):
+        E.apply(r, E.Demonstrated("demo.npz", "expert"), rebuild)
+    r2 = E.apply(r, E.Judged(True), rebuild)
+    assert r.stage == "judge" and r2.stage == "demonstrate"
+    r3 = E.apply(r2, E.Demonstrated("demo.npz", "expert"), rebuild)
+    assert r3.stage == "diagnose" and r3.demo is demo
 
 
 @pytest.mark.parametrize(
@@ -145,11 +203,11 @@ def test_line_cut_short_by_a_crash_is_dropped_and_cut_on_append(tmp_path):
     path = _write(folder, HEADER, TASK)
     with open(path, "ab") as f:
         f.write(b'{"type": "judgement", "fai')  # the process died mid-write
-    events, _, notes = read_events(folder)
-    assert [e["type"] for e in events] == ["session", "task"]
+    entries, _, notes = read_events(folder)
+    assert [type(e).__name__ for _, e in entries] == ["SessionStarted", "TaskLoaded"]
     assert notes and f"{path}:3: incomplete last line" in notes[0]
     s = Session.open(folder, world="nav2d")
-    s.append("judgement", failed=False)
+    s.append(E.Judged(False))
     s.close()
     lines = path.read_text().splitlines()
     assert len(lines) == 3 and json.loads(lines[2])["failed"] is False
@@ -161,7 +219,7 @@ def test_complete_last_line_without_newline_gets_one(tmp_path):
     folder.mkdir()
     path.write_text(HEADER + "\n" + TASK)  # no trailing newline
     s = Session.open(folder, world="nav2d")
-    s.append("judgement", failed=True)
+    s.append(E.Judged(True))
     s.close()
     assert [json.loads(x)["type"] for x in path.read_text().splitlines()] == [
         "session",
@@ -185,15 +243,15 @@ def test_files_named_by_events(tmp_path):
         (scene, scene), np.zeros((2, 4, 4, 3), np.uint8), np.zeros((1, 2), np.float32), False
     )
     name = s.save_trajectory(traj, "demo")
-    ev = s.append("demonstration", file=name, source="clicks")
-    assert s.load_trajectory(name, ev).equals(traj)
+    line = s.append(E.Demonstrated(name, "clicks"))
+    assert s.load_trajectory(name, line).equals(traj)
     with pytest.raises(SessionError, match=r"session.jsonl:2: '../x.npz' is not a file name"):
-        s.file("../x.npz", ev)
+        s.file("../x.npz", line)
     (s.folder / name).write_bytes(b"garbage")
     with pytest.raises(
         SessionError, match=rf"session.jsonl:2: the file it names is unusable: .*{name}"
     ):
-        s.load_trajectory(name, ev)
+        s.load_trajectory(name, line)
     s.close()
 
 
@@ -271,6 +329,9 @@ def test_cli_serve_refuses_a_bad_session_before_serving(tmp_path, lines, line, e
     assert _snapshot(folder) == before
 
 
+QUICK = AdaptConfig(budget=5, finetuning=Finetuning(steps=20))  # a short finetuning for tests
+
+
 def _wait(state, timeout_s: float = 300.0) -> None:
     from dfa_viz.app.server import wait_idle
 
@@ -281,7 +342,7 @@ def _wait(state, timeout_s: float = 300.0) -> None:
 def test_replaying_a_session_rebuilds_the_loop_state(tmp_path, nav_policy):
     from dfa_viz.app.server import open_state
 
-    state = open_state(session=tmp_path / "s", out=tmp_path, finetune_steps=20)
+    state = open_state(session=tmp_path / "s", out=tmp_path, adapt=QUICK)
     state.pick("nav2d", "distractor_ti", 0)
     _wait(state)
     state.judge(True)
@@ -290,25 +351,26 @@ def test_replaying_a_session_rebuilds_the_loop_state(tmp_path, nav_policy):
     state.mark("distractor", "presence", relevant=False, acceptable=("present",))
     assert state.finetune()
     _wait(state)
-    before = state.snapshot().run
+    before = state.snapshot().record
     assert state.recording.is_file() and state.recording.parent == tmp_path
     state.close()
 
     again = open_state(session=tmp_path / "s", out=tmp_path)
-    run = again.snapshot().run
+    run = again.snapshot().record
     assert again.snapshot().stage == "adapted"
     assert run.task == before.task and run.demo.equals(before.demo)
-    assert [c.edit for c in run.result.counterfactuals] == [
-        c.edit for c in before.result.counterfactuals
+    assert [c.edit for c in run.diagnosis.result.counterfactuals] == [
+        c.edit for c in before.diagnosis.result.counterfactuals
     ]
-    assert run.counterfactual.equals(before.counterfactual)
-    assert run.marks == before.marks
+    assert run.diagnosis.counterfactual.equals(before.diagnosis.counterfactual)
+    assert run.feedback == before.feedback
     assert run.adaptation.rollout.equals(before.adaptation.rollout)
     assert run.adaptation.losses == pytest.approx(before.adaptation.losses, abs=1e-6)
-    assert (run.adaptation.success_before, run.adaptation.success_after) == (
-        before.adaptation.success_before,
-        before.adaptation.success_after,
-    )
+    assert run.evaluation == before.evaluation
+    # the variants are made again from the settings the event kept: the same set
+    assert [a.scenes for a in run.adaptation.augmented] == [
+        a.scenes for a in before.adaptation.augmented
+    ]
     again.close()
 
 
@@ -321,7 +383,7 @@ def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
     state.judge(True)
     state.demonstrate(expert=True)
     _wait(state)
-    found = [c.edit for c in state.run.result.counterfactuals]
+    found = [c.edit for c in state.record.diagnosis.result.counterfactuals]
     state.close()
     log = tmp_path / "s" / LOG
     lines = log.read_text().splitlines(keepends=True)
@@ -331,7 +393,7 @@ def test_a_search_cut_off_by_a_crash_runs_again_on_resume(tmp_path, nav_policy):
     again = open_state(session=tmp_path / "s", out=tmp_path)
     _wait(again)  # resuming started the search again
     assert again.snapshot().stage == "feedback"
-    assert [c.edit for c in again.run.result.counterfactuals] == found
+    assert [c.edit for c in again.record.diagnosis.result.counterfactuals] == found
     assert json.loads(log.read_text().splitlines()[-1])["type"] == "search"
     again.close()
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from policy import base_policy, evaluate, finetune
+from policy import base_policy, finetune, score
 from search import counterfactual_search
 from sim import get_world
 from sim.core import UserError
@@ -32,7 +32,7 @@ def test_a_nan_weight_policy_is_refused_with_one_line(name):
     demo = world.demonstrate(task)
     for attempt in (
         lambda: world.rollout(task, policy),
-        lambda: evaluate(world, policy, task),
+        lambda: score(world, policy, task),
         lambda: counterfactual_search(world, policy, task.scene, demo),
     ):
         with pytest.raises(UserError, match="outputs are not finite numbers") as err:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from dfa_viz.bench import best_of
+from dfa_viz.bench.timing import best_of
 from policy import base_policy, failing_test_task, finetune, training_demos
 from sim import get_world
 

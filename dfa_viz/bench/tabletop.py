@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from dfa_viz.bench import best_of
+from dfa_viz.bench.timing import best_of
 from policy import Policy, base_policy, failing_test_task
 from search import SearchConfig, counterfactual_search, rollout_lockstep, singles
 from sim import get_world

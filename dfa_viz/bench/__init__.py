@@ -1,0 +1,12 @@
+"""`dfa bench`: every speed figure measured on this machine, each against a baseline or a bound
+timed in the same run, written to benchmarks/latest.md.
+
+run.py       run_bench: the table of figures, printed and written
+search.py    the search against a naive one-candidate loop
+tabletop.py  the tabletop's edit + render and search targets
+costs.py     per world: render throughput, finetuning, recording size, one experiment run
+page.py      the web page in Chromium: load, slider latency, finetune round trip
+timing.py    best_of and the machine's name
+
+Its options are dfa_viz.configs.BenchArgs.
+"""

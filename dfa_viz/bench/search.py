@@ -1,0 +1,69 @@
+"""The search against a naive one-candidate loop, timed in the same process."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dfa_viz.bench.timing import best_of
+from policy import Policy, base_policy, failing_test_task
+from policy.model import probabilities
+from search import Candidate, combinations, rollout_lockstep
+from search.lockstep import compared_steps
+from sim import get_world
+from sim.core import Edit, Scene, Trajectory, World
+
+
+def naive_search(
+    world: World, policy: Policy, scene: Scene, demo: Trajectory, edits: list[Edit], epsilon: float
+) -> list[bool]:
+    """The baseline: one candidate at a time, a batch-1 render and forward per step."""
+    valid = []
+    steps = compared_steps(world, demo)
+    for edit in edits:
+        s, ok = world.apply(scene, edit), True
+        for t in range(steps):
+            out = policy.outputs(world.render(s)[None])  # (1, A)
+            if world.discrete:
+                a = out.argmax(axis=1)
+                probabilities(out)
+                ok = int(a[0]) == int(demo.actions[t])
+            else:
+                a = out
+                ok = float(np.abs(out[0] - demo.actions[t]).sum()) < epsilon
+            if not ok:
+                break
+            if t + 1 < steps:
+                s = world.step_batch([s], a)[0]
+        valid.append(ok)
+    return valid
+
+
+def bench_world(
+    name: str, *, repeats: int = 3, shift: str = "distractor_ti", sizes: tuple[int, ...] = (1, 2)
+) -> dict:
+    """Time the whole search over `sizes` (every edit of each size, no early stop), batched in
+    lockstep and naive, on one failing task of `shift`."""
+    world = get_world(name)
+    policy = base_policy(world)
+    task, _ = failing_test_task(world, policy, shift, 0)
+    demo = world.demonstrate(task)
+    edits = {k: list(combinations(world.space, task.scene, k)) for k in sizes}
+    everything = [e for k in sizes for e in edits[k]]
+    eps = world.epsilon
+
+    def batched() -> list[Candidate]:  # as the search does for small spaces: one pass
+        return rollout_lockstep(world, policy, task.scene, demo, everything, epsilon=eps)
+
+    t_batched, tried = best_of(batched, repeats)
+    t_naive, naive_valid = best_of(
+        lambda: naive_search(world, policy, task.scene, demo, everything, eps), 1
+    )
+    assert naive_valid == [c.valid for c in tried], "naive and batched searches disagree"
+    return {
+        "candidates": len(everything),
+        "per_size": {k: len(v) for k, v in edits.items()},
+        "batched_s": t_batched,
+        "naive_s": t_naive,
+        "per_s": len(everything) / t_batched,
+        "ratio": t_naive / t_batched,
+    }

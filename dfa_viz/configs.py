@@ -1,0 +1,253 @@
+"""The options of every `dfa` subcommand, written once: one frozen dataclass per command (a
+docstring under each field: tyro turns them into the help), shared by the CLI and the function
+it calls. Light to import: nothing here loads torch, MuJoCo, rerun or viser.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Literal
+
+import tyro
+
+from sim.core import UserError
+
+
+@dataclass(frozen=True)
+class Finetuning:
+    """How a policy is finetuned and scored, whatever the budget; the same for `dfa run`, the
+    page and the finetuning experiment."""
+
+    steps: int = 300
+    """Fewest finetuning gradient steps (batch and learning rate: policy.train.FINETUNE's)."""
+    steps_per_trajectory: int = 10
+    """Steps per finetuning trajectory above that: a run takes max(steps, this x budget), so a
+    large budget gets as many passes over its data as a small one."""
+    replay_share: float = 0.5
+    """Share of every finetuning batch replayed from the base policy's training
+    demonstrations, so that fitting the new ones does not erase what it did elsewhere."""
+    sources: Literal["all", "user"] = "all"
+    """What variants are made from: "all" (the base policy's training demonstrations and the
+    user's, edited as R' allows) or "user" (the user's demonstration only, as in the paper)."""
+    n_eval: int = 10
+    """Fresh tasks each policy is scored on, on the shift and over all of R' (the paper's 10)."""
+
+    def check(self) -> Finetuning:
+        """Raise a UserError for a setting out of range; returns self."""
+        for name, value in (
+            ("steps", self.steps),
+            ("steps-per-trajectory", self.steps_per_trajectory),
+            ("n-eval", self.n_eval),
+        ):
+            if value < 1:
+                raise UserError(f"--{name} must be at least 1, not {value}")
+        if not 0.0 <= self.replay_share < 1.0:
+            raise UserError(
+                f"--replay-share is a share of a batch in [0, 1), not {self.replay_share}"
+            )
+        if self.sources not in ("all", "user"):
+            raise UserError(f"--sources is all or user, not {self.sources!r}")
+        return self
+
+
+@dataclass(frozen=True)
+class AdaptConfig:
+    """How a policy is adapted from one demonstration and the user's feedback."""
+
+    budget: int = 25
+    """Finetuning trajectories: the demonstration plus budget - 1 variants of it over the TI
+    concepts (repeated from the demonstration on when fewer exist)."""
+    finetuning: Annotated[Finetuning, tyro.conf.OmitArgPrefixes] = field(default_factory=Finetuning)
+    """How it finetunes and scores."""
+
+    def train_config(self, seed: int):
+        """The finetuning settings (policy.train.TrainConfig) of a run with this budget and
+        seed: max(steps, steps_per_trajectory x budget) steps."""
+        from policy.train import FINETUNE, TrainConfig
+
+        f = self.finetuning
+        steps = max(f.steps, f.steps_per_trajectory * self.budget)
+        return TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, seed)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> AdaptConfig:
+        """Read back dataclasses.asdict(config) (TypeError or KeyError if malformed)."""
+        return cls(int(d["budget"]), Finetuning(**d["finetuning"]))
+
+    def check(self) -> AdaptConfig:
+        """Raise a UserError for a setting out of range; returns self."""
+        if self.budget < 1:
+            raise UserError(f"--budget must be at least 1, not {self.budget}")
+        self.finetuning.check()
+        return self
+
+
+@dataclass(frozen=True)
+class RunArgs:
+    """Run the whole DFA loop once with the simulated user and report what happened.
+
+    Rolls the base policy out on a failing test task of the chosen shift, takes a
+    demonstration, searches the smallest concept edit that makes the policy follow it, takes
+    TI/TR feedback, finetunes on the demonstration and its variants over the TI concepts, and
+    scores both policies on 10 fresh tasks that carry the shift (and 10 from all of what the
+    user wants). Everything is recorded to OUT/<world>-<shift>-seed<seed>.rrd.
+    """
+
+    world: str = "nav2d"
+    """nav2d, doorkey or tabletop."""
+    shift: str = "object_ti"
+    """object_ti, object_tr, distractor_ti, distractor_tr or other."""
+    seed: int = 0
+    """Selects the test task; the same seed gives the same run."""
+    json: bool = False
+    """Print the report as one JSON object."""
+    accuracy: float = 1.0
+    """Probability that each simulated feedback label is right."""
+    label: tuple[str, ...] = ()
+    """Fixed answers, e.g. goal.colour=TR or distractor.presence=TI."""
+    policy: Path | None = None
+    """A checkpoint folder (model.safetensors + config.json) instead of the base policy."""
+    demo: Path | None = None
+    """A demonstration .npz (a saved Trajectory) instead of the scripted expert's."""
+    max_size: int = 2
+    """The largest edit the search tries (concept changes)."""
+    out: Path = Path("recordings")
+    """Folder for the recording."""
+    adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
+    """How the policy is adapted (the finetuning experiment's defaults)."""
+
+
+@dataclass(frozen=True)
+class TrainArgs:
+    """Load the committed base policy of each world, checked against today's training recipe,
+    and report its success on the training tasks; --retrain trains it again and writes it where
+    it is kept (policy/weights/<world>/: commit the new files)."""
+
+    worlds: tuple[str, ...] = ("nav2d",)
+    """Which worlds."""
+    seed: int = 0
+    """Training seed (0: the policies of record; others are cached outside the repository)."""
+    retrain: bool = False
+    """Train again instead of loading."""
+
+
+@dataclass(frozen=True)
+class BenchArgs:
+    """Measure every speed figure on this machine and write them to benchmarks/ as Markdown.
+
+    Each world's search against a naive one-candidate-at-a-time loop timed in the same
+    process, a whole `dfa run`, the tabletop's edit + render and search targets, per world the
+    render throughput, finetuning time, recording size and one experiment run, and the web page
+    (load, slider latency, finetune round trip).
+    """
+
+    worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop")
+    """Which worlds to measure."""
+    repeats: int = 3
+    """Timing repeats (the best is reported)."""
+    page: bool = True
+    """Also measure the web page in Chromium (a minute or two)."""
+    out: Path = Path("benchmarks") / "latest.md"
+    """The Markdown report."""
+
+
+@dataclass(frozen=True)
+class ServeArgs:
+    """Serve the feedback web page: pick a task, demonstrate, diagnose, mark TI/TR, adapt.
+
+    Binds 127.0.0.1 unless --host says otherwise; prints the URL. Every user action is appended
+    to the session folder as JSON lines before the page acknowledges it; --session DIR resumes.
+    """
+
+    world: str = "nav2d"
+    """The world the page opens on."""
+    port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None
+    """When left out, 8080 or the next free one; a port given must be free (0: any)."""
+    host: str = "127.0.0.1"
+    """The interface to bind; 0.0.0.0 exposes the page to the network."""
+    session: Path | None = None
+    """A session folder to resume (default: a new one under recordings/sessions/)."""
+    out: Path = Path("recordings")
+    """Folder for the recordings and new sessions."""
+    adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
+    """How "Augment & finetune" adapts (the finetuning experiment's defaults)."""
+
+
+@dataclass(frozen=True)
+class DemoArgs:
+    """Open the feedback page on a default scenario, the diagnosis already computed.
+
+    The failed rollout, the expert's demonstration and the counterfactual are ready to scrub;
+    mark the edited concepts TI or TR and press "Augment & finetune". Ctrl-C stops the server.
+    """
+
+    world: str = "nav2d"
+    """The world of the scenario."""
+    shift: str = "distractor_ti"
+    """The shift of the scenario."""
+    seed: int = 0
+    """The seed of the scenario."""
+    port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None
+    """When left out, 8080 or the next free one; a port given must be free (0: any)."""
+    host: str = "127.0.0.1"
+    """The interface to bind; 0.0.0.0 exposes the page to the network."""
+    out: Path = Path("recordings")
+    """Folder for the recordings and the session."""
+    adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
+    """How "Augment & finetune" adapts (the finetuning experiment's defaults)."""
+
+
+Condition = Literal["nh_random", "baseline_h", "cf_h", "oracle"]
+
+
+@dataclass(frozen=True)
+class Q2Args:
+    """Reproduce the paper's finetuning comparison: success against finetuning trajectories.
+
+    For every world, shift, condition, budget and seed, one run takes the first task-irrelevant
+    test task of that seed the base policy fails, the expert's demonstration of it, and a
+    concept to mark task-irrelevant: NH-random a random concept for each variant; Baseline H a
+    simulated user who names the right concept at the paper's rate without counterfactuals;
+    CF H one who sees the loop's real diagnosis and names the right concept at the paper's
+    rate with counterfactuals (never when the search found nothing or the wrong thing); Oracle
+    always the right one. The budget is the number of finetuning trajectories: the
+    demonstration plus budget - 1 distinct variants over the concept (same actions, edited
+    states), repeated from the demonstration on when the concept has fewer variants. The
+    adaptation is `dfa run`'s own (loop.adapt); both policies are scored on fresh tasks that
+    carry the test task's shift, and on fresh tasks from all of what the user wants.
+
+    Writes OUT/runs.csv (every run), OUT/table.md (means with 95% confidence intervals beside
+    the paper's numbers, and whether CF H beats Baseline H), OUT/plots/<world>-<shift>.png and
+    OUT/curves.rrd. Runs already in OUT/runs.csv are skipped, so an interrupted experiment
+    resumes where it stopped. The same seeds give the same runs.csv whichever backend ran them.
+    """
+
+    which: tyro.conf.Positional[Literal["q2"]]
+    """The experiment: q2, the finetuning comparison."""
+    worlds: Annotated[
+        tuple[Literal["nav2d", "doorkey", "tabletop"], ...], tyro.conf.arg(aliases=("--world",))
+    ] = ("nav2d", "doorkey", "tabletop")
+    """Which of the paper's worlds."""
+    shift: Literal["object", "distractor", "both"] = "both"
+    """object, distractor, or both."""
+    budgets: tuple[int, ...] = (5, 10, 25, 50, 75, 100)
+    """Finetuning trajectories per run (the demonstration counts as one)."""
+    seeds: int = 5
+    """Seeds 0 .. SEEDS-1 (each picks a test task and every random choice of its runs)."""
+    workers: int = 2
+    """Runs executed side by side (processes locally, CPUs of a local Ray instance)."""
+    backend: Literal["local", "ray"] = "local"
+    """local (a process pool on this machine) or ray (pip install 'dfa[ray]')."""
+    out: Path = Path("recordings/experiments/q2")
+    """The results folder."""
+    conditions: tuple[Condition, ...] = ("nh_random", "baseline_h", "cf_h", "oracle")
+    """Which conditions."""
+    max_size: int = 2
+    """Largest edit the counterfactual search tries (CF H)."""
+    ray_address: str | None = None
+    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
+    progress: bool = True
+    """Show a progress bar."""
+    finetuning: Annotated[Finetuning, tyro.conf.OmitArgPrefixes] = field(default_factory=Finetuning)
+    """How every run finetunes and scores (its budget is one of --budgets)."""
