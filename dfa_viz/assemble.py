@@ -11,8 +11,9 @@ from dfa_viz.configs import RunArgs
 from dfa_viz.loop import RunRecord, run_loop
 from dfa_viz.recording import write_recording
 from dfa_viz.users import SimulatedUser
-from policy import Policy, base_policy, failing_test_task, load_policy
+from policy import base_policy, failing_test_task
 from policy.base import base_folder
+from policy.outside import load
 from policy.train import BASE, training_tasks
 from search import SearchConfig
 from sim import get_world
@@ -96,11 +97,18 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     if not 0.0 <= args.accuracy <= 1.0:
         raise UserError(f"accuracy is a probability in [0, 1], not {args.accuracy}")
     overrides = parse_labels(world, args.label)
-    policy: Policy = (
-        load_policy(args.policy, world=world) if args.policy is not None else base_policy(world)
-    )
-    task, _ = failing_test_task(world, policy, args.shift, args.seed)
-    demo = load_demo(world, task, args.demo) if args.demo is not None else None
+    policy = load(args.policy, world) if args.policy is not None else base_policy(world)
+    policy.fits(world)
+    if world.benchmark:
+        task, _ = failing_test_task(world, policy, args.shift, args.seed)
+        demo = load_demo(world, task, args.demo) if args.demo is not None else None
+    elif args.demo is not None:  # no test tasks: the demonstration's first scene is the task
+        task = world.task_for(Trajectory.load(args.demo).scenes[0])
+        demo = load_demo(world, task, args.demo)
+    else:
+        raise UserError(
+            f"{world.name} makes no test tasks: give the demonstration to diagnose from (--demo)"
+        )
     user = SimulatedUser(
         world, accuracy=args.accuracy, seed=args.seed, overrides=overrides, demo=demo
     )

@@ -1,6 +1,6 @@
 """The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
 
-    dfa run | train | bench | demo | serve | experiment q2
+    dfa run | train | worlds | bench | demo | serve | experiment q2
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
 one line and exits 2.
@@ -17,12 +17,21 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import tyro
 
-from dfa_viz.configs import BenchArgs, DemoArgs, Q2Args, RunArgs, ServeArgs, TrainArgs
+from dfa_viz.configs import (
+    BenchArgs,
+    DemoArgs,
+    Q2Args,
+    RunArgs,
+    ServeArgs,
+    TrainArgs,
+    WorldsArgs,
+)
 from sim.core import UserError
 
 Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[RunArgs, tyro.conf.subcommand("run")],
     Annotated[TrainArgs, tyro.conf.subcommand("train")],
+    Annotated[WorldsArgs, tyro.conf.subcommand("worlds")],
     Annotated[BenchArgs, tyro.conf.subcommand("bench")],
     Annotated[DemoArgs, tyro.conf.subcommand("demo")],
     Annotated[ServeArgs, tyro.conf.subcommand("serve")],
@@ -48,6 +57,31 @@ def train(args: TrainArgs) -> None:
     for name in args.worlds:
         path, rate = train_base(name, seed=args.seed, retrain=args.retrain)
         print(f"{name}: base policy at {path}; success on its training tasks {rate:.0%}")
+
+
+def worlds(args: WorldsArgs) -> None:
+    from sim import get_world, world_names
+
+    for name in args.names or tuple(n for n in world_names() if not n.endswith(":...")):
+        world = get_world(name)
+        print(f"{name}: {describe(world)}")
+    if not args.names:
+        print("minigrid:<EnvId>[:tile=N][:view=partial]: any registered MiniGrid environment")
+
+
+def describe(world) -> str:
+    """A world in one line: its slots and concepts, actions, horizon and capabilities."""
+    slots = []
+    for s in world.space.slots:
+        names = [f"{c.name}({len(c.values)})" for c in s.concepts]
+        names = (["presence"] if s.optional else []) + names
+        slots.append(f"{s.name}[{', '.join(names)}]")
+    acts = f"{world.action_dim} discrete" if world.discrete else f"{world.action_dim}-d continuous"
+    kind = "shifts " + "/".join(world.shifts) if world.shifts else "diagnosis from a demonstration"
+    return (
+        f"{' '.join(slots)}; frames {world.obs_shape[0]}x{world.obs_shape[1]}, {acts} actions, "
+        f"{world.horizon} steps; demonstrations by {world.demo_input}; {kind}"
+    )
 
 
 def bench(args: BenchArgs) -> None:
@@ -85,6 +119,7 @@ def experiment(args: Q2Args) -> None:
 HANDLERS = {
     RunArgs: run,
     TrainArgs: train,
+    WorldsArgs: worlds,
     BenchArgs: bench,
     DemoArgs: demo,
     ServeArgs: serve,

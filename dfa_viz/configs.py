@@ -106,16 +106,27 @@ class RunArgs:
     """Probability that each simulated feedback label is right."""
     label: tuple[str, ...] = ()
     """Fixed answers, e.g. goal.colour=TR or distractor.presence=TI."""
-    policy: Path | None = None
-    """A checkpoint folder (model.safetensors + config.json) instead of the base policy."""
+    policy: str | None = None
+    """The policy to diagnose instead of the base policy: a checkpoint folder
+    (model.safetensors + config.json), onnx:PATH.onnx, torch:MODULE:CALLABLE@WEIGHTS or
+    sb3:PATH.zip (policy.outside)."""
     demo: Path | None = None
-    """A demonstration .npz (a saved Trajectory) instead of the scripted expert's."""
+    """A demonstration .npz (a saved Trajectory) instead of the scripted expert's; for a world
+    without test tasks, the demonstration's first scene is the task."""
     max_size: int = 2
     """The largest edit the search tries (concept changes)."""
     out: Path = Path("recordings")
     """Folder for the recording."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
     """How the policy is adapted (the finetuning experiment's defaults)."""
+
+
+@dataclass(frozen=True)
+class WorldsArgs:
+    """List every registered world with its concept space in one line (and what it can do)."""
+
+    names: tuple[str, ...] = ()
+    """Only these worlds (e.g. minigrid:MiniGrid-DoorKey-5x5-v0); default: every registered one."""
 
 
 @dataclass(frozen=True)
@@ -168,6 +179,8 @@ class ServeArgs:
     """The interface to bind; 0.0.0.0 exposes the page to the network."""
     session: Path | None = None
     """A session folder to resume (default: a new one under recordings/sessions/)."""
+    policy: str | None = None
+    """The policy to diagnose in --world instead of its base policy (as for `dfa run`)."""
     out: Path = Path("recordings")
     """Folder for the recordings and new sessions."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)

@@ -260,8 +260,8 @@ def adapt(
     """Finetune a copy of `base` on exactly `config.budget` trajectories: the demonstration and
     its variants over the TI labels (or the `augmented` trajectories given), with the base
     policy's training demonstrations (`known`, made here when None) replayed in every batch."""
-    if known is None:
-        known = training_demos(world)
+    if known is None:  # the base policy's training demonstrations, where the world has them
+        known = training_demos(world) if world.benchmark else ()
     if augmented is None:
         augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
     tuned, losses = finetune(
@@ -328,7 +328,8 @@ def run_loop(
         known=known,
         on_loss=on_loss,
     )
-    evaluation = evaluate(
-        world, policy, adaptation.policy, task, n=config.finetuning.n_eval, seed=seed
-    )
+    evaluation = None  # a world without fresh tasks is not scored
+    if world.benchmark:
+        n = config.finetuning.n_eval
+        evaluation = evaluate(world, policy, adaptation.policy, task, n=n, seed=seed)
     return dataclasses.replace(record, adaptation=adaptation, evaluation=evaluation)

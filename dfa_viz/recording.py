@@ -103,7 +103,7 @@ def blueprint(world: World) -> rrb.Blueprint:
     action-distance plot beneath; edit, feedback, loss and success at the bottom. Worlds with
     a 3D scene add their 3D views beside the camera images."""
     views: list = [rrb.Spatial2DView(origin=f"rollouts/{name}", name=name) for name in ROLLOUTS]
-    if getattr(world, "has_3d", False):
+    if world.view3d is not None:
         from dfa_viz import scene3d
 
         views += scene3d.views()
@@ -160,7 +160,7 @@ class Recorder:
     # -- helpers ------------------------------------------------------------------------------
     def _image(self, frame: np.ndarray):
         img = rr.Image(frame)
-        return img if getattr(self.world, "lossless_frames", False) else img.compress(JPEG_QUALITY)
+        return img if self.world.lossless_frames else img.compress(JPEG_QUALITY)
 
     def _series(self, entity: str, steps: np.ndarray, values: np.ndarray, timeline: str = "step"):
         keep = ~np.isnan(values)
@@ -191,7 +191,7 @@ class Recorder:
         for k in range(actions.shape[1]):
             self._series(f"rollouts/{name}/action/{k}", steps, actions[:, k])
         self.rec.log(f"rollouts/{name}/success", rr.AnyValues(success=traj.success), static=True)
-        if getattr(self.world, "has_3d", False):
+        if self.world.view3d is not None:
             from dfa_viz import scene3d
 
             scene3d.log_rollout(self.rec, self.world, name, traj)

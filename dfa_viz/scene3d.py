@@ -1,4 +1,5 @@
-"""The tabletop in 3D for the recording: each object's mesh once, its pose over time.
+"""A world's 3D scene for the recording (World.view3d): each object's mesh once, its pose over
+time.
 
 Layout under `scene3d/<rollout>/` (rollout: failed, demonstration, counterfactual, finetuned):
     table           static Boxes3D, the table top (its top face at z = 0)
@@ -9,8 +10,8 @@ Layout under `scene3d/<rollout>/` (rollout: failed, demonstration, counterfactua
                     and the settling of each pick-and-place, one row per 20 ms
     action          Arrows3D from the pick point to the place point, on the `step` timeline
 
-The meshes come from sim.tabletop.meshes.shape_mesh, the same geometry MuJoCo simulates and
-renders (the web page reuses it too).
+The meshes, looks and poses come from the world's View3D (the tabletop's: the same geometry
+MuJoCo simulates and renders; the web page reuses it too).
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from sim.core import Scene, Trajectory
+from sim.core import Scene, Trajectory, World
+from sim.core.view3d import View3D
 
 ROOT = "scene3d"
 VIEWS = ("failed", "counterfactual")  # the two rollouts the user compares in 3D
@@ -35,28 +37,24 @@ def views() -> list:
 
 
 @lru_cache(maxsize=64)
-def _mesh(shape: str, colour: str) -> rr.Mesh3D:
+def _mesh(view: View3D, shape: str, colour: str) -> rr.Mesh3D:
     """The display mesh of `shape` in `colour`, flat shaded (every face its own corners)."""
-    from sim.tabletop import colours as C
-    from sim.tabletop import textures as T
-    from sim.tabletop.meshes import shape_mesh
-    from sim.tabletop.pose import rgba
-
-    mesh = shape_mesh(shape)
+    mesh = view.mesh(shape)
+    look = view.look(colour)
     corners = mesh.vertices[mesh.faces].reshape(-1, 3).astype(np.float32)  # (3F, 3)
     normals = np.repeat(mesh.face_normals, 3, axis=0).astype(np.float32)  # (3F, 3)
     triangles = np.arange(len(corners), dtype=np.uint32).reshape(-1, 3)  # (F, 3)
-    if C.is_plain(colour):
+    if look.texture is None:
         return rr.Mesh3D(
             vertex_positions=corners,
             triangle_indices=triangles,
             vertex_normals=normals,
-            albedo_factor=rgba(colour),
+            albedo_factor=look.rgba,
         )
-    # a texture, projected from above as in the MuJoCo model (one tile per TEX_M metres);
-    # the image holds 3x3 tiles so that no texture wrap mode is needed for objects < 3 TEX_M
-    tiles = np.tile(T.texture(colour), (3, 3, 1))  # (3 TEX_PX, 3 TEX_PX, 3) uint8
-    uv = (corners[:, :2] / T.TEX_M + 0.5 + 1.0) / 3.0  # (3F, 2) in [0, 1]
+    # a texture, projected from above (one tile per tile_m metres); the image holds 3x3 tiles
+    # so that no texture wrap mode is needed for objects under 3 tiles across
+    tiles = np.tile(look.texture, (3, 3, 1))  # (3 P, 3 P, 3) uint8
+    uv = (corners[:, :2] / look.tile_m + 0.5 + 1.0) / 3.0  # (3F, 2) in [0, 1]
     return rr.Mesh3D(
         vertex_positions=corners,
         triangle_indices=triangles,
@@ -66,23 +64,19 @@ def _mesh(shape: str, colour: str) -> rr.Mesh3D:
     )
 
 
-def _static_table(rec: rr.RecordingStream, base: str) -> None:
-    from sim.tabletop.colours import TABLE_RGB
-    from sim.tabletop.pose import TABLE_HALF_M, TABLE_THICKNESS_M
-    from sim.tabletop.tasks import VIEW_HALF_M
-
-    half = (TABLE_HALF_M, TABLE_HALF_M, TABLE_THICKNESS_M / 2)
+def _static_table(rec: rr.RecordingStream, view: View3D, base: str) -> None:
+    half = (view.table_half_m, view.table_half_m, view.table_thickness_m / 2)
     rec.log(
         f"{base}/table",
         rr.Boxes3D(
             half_sizes=[half],
-            centers=[(0.0, 0.0, -TABLE_THICKNESS_M / 2)],
-            colors=[TABLE_RGB],
+            centers=[(0.0, 0.0, -view.table_thickness_m / 2)],
+            colors=[view.table_rgb],
             fill_mode="solid",
         ),
         static=True,
     )
-    v = VIEW_HALF_M
+    v = view.view_half_m
     square = [(-v, -v, 0.001), (v, -v, 0.001), (v, v, 0.001), (-v, v, 0.001), (-v, -v, 0.001)]
     rec.log(
         f"{base}/view",
@@ -106,21 +100,19 @@ def _log_step_poses(rec: rr.RecordingStream, base: str, scene: Scene, step: int)
             rec.log(f"{base}/{o.slot}", _transform(o.pos[:3], o.pos[3:7]))
 
 
-def log_rollout(rec: rr.RecordingStream, world, name: str, traj: Trajectory) -> None:
-    """Log one tabletop rollout under scene3d/<name>: meshes once, poses over time.
+def log_rollout(rec: rr.RecordingStream, world: World, name: str, traj: Trajectory) -> None:
+    """Log one rollout under scene3d/<name>: meshes once, poses over time.
 
-    world: the TabletopWorld the rollout ran in (its pick-and-place is simulated again, with
-    poses recorded every 20 ms: the simulation is deterministic, so it ends where traj does).
+    world: a world with a 3D view; each action is played out again through the view, with
+    poses every 20 ms (the simulation is deterministic, so it ends where traj does).
     traj: scenes (T+1,), actions float32 (T, 4) = (pick_x, pick_y, place_x, place_y) metres.
     """
-    from sim.tabletop.pose import step_with_frames
-
+    view = world.view3d
+    assert view is not None, f"{world.name} has no 3D view"
     base = f"{ROOT}/{name}"
-    _static_table(rec, base)
-    first = traj.scenes[0]
-    for o in first.objects:
-        if o.present:
-            rec.log(f"{base}/{o.slot}", _mesh(o.value("shape"), o.value("colour")), static=True)
+    _static_table(rec, view, base)
+    for p in view.poses(traj.scenes[0]):
+        rec.log(f"{base}/{p.slot}", _mesh(view, p.shape, p.colour), static=True)
     actions = np.asarray(traj.actions, np.float64).reshape(traj.horizon, -1)  # (T, 4)
     t0_s = 0.0
     for t in range(traj.horizon + 1):
@@ -137,7 +129,7 @@ def log_rollout(rec: rr.RecordingStream, world, name: str, traj: Trajectory) -> 
                 radii=0.004,
             ),
         )
-        frames, _ = step_with_frames(world, traj.scenes[t], a, every=FRAME_EVERY)
+        frames = view.frames(traj.scenes[t], a, every=FRAME_EVERY)
         rec.reset_time()
         for f, time_s in enumerate(frames.times_s):
             rec.set_time("sim_time", duration=t0_s + float(time_s))

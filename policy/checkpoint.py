@@ -25,13 +25,19 @@ MAX_ACTIONS = 256
 
 
 def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None) -> Path:
-    """Write folder/model.safetensors and folder/config.json (the architecture + `meta`)."""
+    """Write folder/model.safetensors and folder/config.json: the architecture (or, for a
+    policy from outside, the spec it was loaded from) and `meta`."""
+    if policy.net is None:
+        raise UserError("this policy has no weights of its own to save (an ONNX graph)")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     state = {k: v.detach().contiguous() for k, v in policy.net.state_dict().items()}
     with files.atomic_path(folder / "model.safetensors") as tmp:
         save_file(state, str(tmp))
-    doc = {"policy": policy.config.to_dict(), "meta": meta or {}}
+    if policy.source is None:
+        doc = {"policy": policy.config.to_dict(), "meta": meta or {}}
+    else:
+        doc = {"source": policy.source, "meta": meta or {}}
     files.write_text(folder / "config.json", json.dumps(doc, indent=2) + "\n")
     return folder
 
@@ -49,10 +55,13 @@ def read_config(folder: str | Path) -> dict[str, Any]:
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         why = "not UTF-8 text" if isinstance(e, UnicodeDecodeError) else "not valid JSON"
         raise UserError(f"checkpoint {path}: {why}; expected a JSON object") from None
-    if not isinstance(doc, dict) or not isinstance(doc.get("policy"), dict):
+    if not isinstance(doc, dict) or not (
+        isinstance(doc.get("policy"), dict) or isinstance(doc.get("source"), str)
+    ):
         raise UserError(
             f'checkpoint {path}: expected a JSON object with a "policy" object '
-            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden)"
+            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden) or a "
+            '"source" (the spec of a policy from outside)'
         )
     return doc
 
@@ -126,12 +135,20 @@ def load_policy(folder: str | Path, *, world: World) -> Policy:
             f"checkpoint {folder}: missing model.safetensors; expected model.safetensors + "
             "config.json"
         )
-    config = config_for(folder, world)
+    source = read_config(folder).get("source")
+    if source is not None:  # a finetuned copy of a policy from outside: its source, new weights
+        from policy.outside import load
+
+        policy = load(source, world)
+        if policy.net is None:
+            raise UserError(f"checkpoint {folder}: its source {source} has no weights to load")
+        net = policy.net
+    else:
+        net = ImagePolicy(config_for(folder, world))
     try:
         state = load_file(weights)
     except (SafetensorError, OSError) as e:
         raise UserError(f"checkpoint {weights}: not a readable safetensors file ({e})") from None
-    net = ImagePolicy(config)
     expected = net.state_dict()
     if set(state) != set(expected):
         raise UserError(
@@ -142,11 +159,11 @@ def load_policy(folder: str | Path, *, world: World) -> Policy:
         if t.shape != expected[name].shape:
             raise UserError(
                 f"checkpoint {weights}: tensor {name} has shape {tuple(t.shape)}, "
-                f"expected {tuple(expected[name].shape)} for obs {config.obs_shape}"
+                f"expected {tuple(expected[name].shape)} for obs {world.obs_shape}"
             )
         if not torch.isfinite(t).all():
             bad = int((~torch.isfinite(t)).sum())
             raise UserError(f"checkpoint {weights}: tensor {name} has {bad} non-finite values")
     with torch.no_grad():
         net.load_state_dict(state)
-    return Policy(net)
+    return policy.with_net(net) if source is not None else Policy(net)

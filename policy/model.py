@@ -65,29 +65,68 @@ class ImagePolicy(nn.Module):
 
 
 class Policy:
-    """A trained ImagePolicy used as a function of numpy observations (no gradients)."""
+    """Any policy as a function of numpy observations: the one protocol the search, the loop
+    and the page use, whatever made the policy (policy.outside loads the others).
 
-    def __init__(self, net: ImagePolicy, *, chunk: int = 1024) -> None:
-        self.net = net.eval()
-        self.config = net.config
+    outputs(obs uint8 (B, H, W, 3)) -> float32 (B, A) actions, or (B, n) scores of the n
+    discrete actions (logits, or anything whose argmax is the action); act() is their action.
+    `net` is the torch module that maps a uint8 (B, H, W, 3) tensor to those outputs, which
+    finetuning trains; None for a policy that can only be run (an ONNX graph).
+
+    discrete, obs_shape (H, W, 3), action_dim: what the policy takes and gives, checked
+    against a world before use (fits). source: how to build it again (a loader's spec; None
+    for the project's own checkpoints, whose config.json says everything).
+    """
+
+    def __init__(
+        self,
+        net: torch.nn.Module | None,
+        *,
+        discrete: bool | None = None,
+        obs_shape: tuple[int, int, int] | None = None,
+        action_dim: int | None = None,
+        source: str | None = None,
+        chunk: int = 1024,
+    ) -> None:
+        config = getattr(net, "config", None)  # the project's ImagePolicy carries its own
+        self.net = net.eval() if net is not None else None
+        self.discrete = config.discrete if discrete is None else discrete
+        self.obs_shape = tuple(config.obs_shape if obs_shape is None else obs_shape)
+        self.action_dim = config.action_dim if action_dim is None else action_dim
+        self.source = source
         self.chunk = chunk
 
-    def copy(self) -> Policy:
-        return Policy(copy.deepcopy(self.net), chunk=self.chunk)
+    @property
+    def config(self) -> PolicyConfig:
+        """The architecture of the project's own policies (an ImagePolicy's config)."""
+        return self.net.config
 
-    @torch.inference_mode()
+    def with_net(self, net: torch.nn.Module) -> Policy:
+        """This policy with another module of the same kind (e.g. a finetuned copy)."""
+        twin = copy.copy(self)
+        twin.net = net.eval()
+        return twin
+
+    def copy(self) -> Policy:
+        return self.with_net(copy.deepcopy(self.net)) if self.net is not None else self
+
+    def _forward(self, obs: np.ndarray) -> np.ndarray:
+        """float32 (B, A | n) of a uint8 (B, H, W, 3) batch."""
+        with torch.inference_mode():
+            return self.net(torch.from_numpy(np.ascontiguousarray(obs))).float().numpy()
+
     def outputs(self, obs: np.ndarray) -> np.ndarray:
-        """Raw head outputs float32 (B, A): actions, or logits for discrete worlds.
+        """Raw outputs float32 (B, A): actions, or scores (logits) for discrete worlds.
 
         Raises UserError when any output is not a finite number: nothing downstream (a
         rollout, the search, a success rate) may be computed from one.
         """
-        x = torch.from_numpy(np.ascontiguousarray(obs))
-        if len(x) <= self.chunk:
-            out = self.net(x).numpy()
+        if len(obs) <= self.chunk:
+            out = self._forward(obs)
         else:
-            chunks = [self.net(x[i : i + self.chunk]) for i in range(0, len(x), self.chunk)]
-            out = torch.cat(chunks).numpy()
+            out = np.concatenate(
+                [self._forward(obs[i : i + self.chunk]) for i in range(0, len(obs), self.chunk)]
+            )
         if not np.isfinite(out).all():
             raise UserError(
                 "the policy's outputs are not finite numbers (NaN or inf): it cannot be rolled "
@@ -98,10 +137,25 @@ class Policy:
     def act(self, obs: np.ndarray) -> np.ndarray:
         """uint8 (B, H, W, 3) -> float32 (B, A), or int64 (B,) argmax for discrete worlds."""
         out = self.outputs(obs)
-        return out.argmax(axis=1).astype(np.int64) if self.config.discrete else out
+        return out.argmax(axis=1).astype(np.int64) if self.discrete else out
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         return self.act(obs)
+
+    def fits(self, world) -> None:
+        """Raise a one-line UserError unless the policy takes the world's observations and
+        gives its kind of actions."""
+        if tuple(self.obs_shape) != tuple(world.obs_shape):
+            raise UserError(
+                f"the policy takes observations of shape {tuple(self.obs_shape)}, but "
+                f"{world.name} renders {tuple(world.obs_shape)}"
+            )
+        if self.discrete != world.discrete or self.action_dim != world.action_dim:
+            kind = lambda d, n: f"{n} discrete actions" if d else f"{n}-d continuous actions"  # noqa: E731
+            raise UserError(
+                f"the policy gives {kind(self.discrete, self.action_dim)}, but {world.name} "
+                f"takes {kind(world.discrete, world.action_dim)}"
+            )
 
 
 def probabilities(logits: np.ndarray) -> np.ndarray:

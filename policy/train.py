@@ -72,6 +72,11 @@ def behaviour_clone(
         r_obs, r_act = transitions(world, replay)
         obs, act = np.concatenate([obs, r_obs]), np.concatenate([act, r_act])
     if init is not None:
+        if init.net is None:
+            raise UserError(
+                "this policy can be run but not trained (an ONNX graph): finetune a PyTorch, "
+                "stable-baselines3 or own checkpoint instead"
+            )
         net = init.copy().net
     else:
         net = ImagePolicy(
@@ -115,7 +120,7 @@ def behaviour_clone(
         losses.append(value)
         if on_loss is not None:
             on_loss(step, losses[-1])
-    return Policy(net.eval()), losses
+    return (init.with_net(net) if init is not None else Policy(net)), losses
 
 
 def finetune(

@@ -40,8 +40,8 @@ class SearchConfig:
         """Defaults a world asks for (e.g. `search_first_only` on large concept spaces)."""
         return cls(
             max_size=max_size,
-            first_only=getattr(world, "search_first_only", False),
-            max_candidates=getattr(world, "search_max_candidates", None),
+            first_only=world.search_first_only,
+            max_candidates=world.search_max_candidates,
         )
 
 

@@ -94,7 +94,7 @@ class Canvas:
             self._meshes = key
             nodes: dict[str, object] = {}
             if show:
-                nodes = self._add_meshes(run.rollout, cf, step)
+                nodes = self._add_meshes(view.world.view3d, run.rollout, cf, step)
             for gone in set(self._mesh_nodes) - set(nodes):
                 self._mesh_nodes[gone].remove()
             self._mesh_nodes = nodes
@@ -103,16 +103,12 @@ class Canvas:
     def _meshes_shown(view: View) -> bool:
         return (
             view.world is not None
-            and view.world.name == "tabletop"
+            and view.world.view3d is not None
             and view.stage in ("feedback", "adapted")
         )
 
-    def _add_meshes(self, failed, counterfactual, step: int) -> dict[str, object]:
-        from sim.tabletop.meshes import shape_mesh
-        from sim.tabletop.pose import object_poses
-        from sim.tabletop.tasks import VIEW_HALF_M
-
-        k = SIZE / (2 * VIEW_HALF_M)  # metres -> scene units: the plane spans the camera's view
+    def _add_meshes(self, view3d, failed, counterfactual, step: int) -> dict[str, object]:
+        k = SIZE / (2 * view3d.view_half_m)  # metres -> scene units: the plane spans the view
         nodes: dict[str, object] = {}
         for name, traj, opacity in (
             ("failed", failed, None),
@@ -121,8 +117,8 @@ class Canvas:
             if traj is None:
                 continue
             scene = traj.scenes[min(step, len(traj.scenes) - 1)]
-            for p in object_poses(scene):
-                mesh = shape_mesh(p.shape)
+            for p in view3d.poses(scene):
+                mesh = view3d.mesh(p.shape)
                 path = f"/scenes/{name}/{p.slot}"
                 nodes[path] = self.client.scene.add_mesh_simple(
                     path,

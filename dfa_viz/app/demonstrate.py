@@ -1,32 +1,23 @@
-"""Demonstrating in the page, one small class per world.
+"""Demonstrating in the page, one small class per kind of input a world declares
+(World.demo_input):
+
+- "waypoints": click waypoints on the image; the agent follows the path at constant speed.
+- "keys": keys or buttons (World.keys), one step each.
+- "pick_place": click the pick point, then the place point.
+- "file" (or any world without one of these): only the scripted expert, where there is one.
 
 Every input shows a canvas (the task's top-down image, upscaled, with what the user did drawn
-on it) and turns the user's clicks or keys into a Trajectory from the task's initial scene:
-
-- nav2d: click waypoints on the image; the agent follows the path at constant speed.
-- doorkey: keys or buttons (turn left/right, forward, pick up, drop, toggle), one step each.
-- tabletop: click the pick point, then the place point.
-
-Canvas clicks arrive as (u, v) in [0, 1]: u to the right, v down the image.
+on it) and turns the user's clicks or keys into a Trajectory from the task's initial scene.
+Canvas clicks arrive as (u, v) in [0, 1]: u to the right, v down the image; the world's
+`image_extent` maps them to its coordinates.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from dfa_viz.app import frames
-from sim.core import Task, Trajectory, UserError, World
-
-
-@dataclass(frozen=True)
-class Key:
-    """A discrete action the page offers as a button and a hotkey."""
-
-    label: str
-    hotkey: str  # a viser HotkeyKey
-    action: int
+from sim.core import Key, Task, Trajectory, UserError, World
 
 
 class DemoInput:
@@ -96,9 +87,19 @@ class DemoInput:
     def _rollout(self, actions: list[np.ndarray]) -> Trajectory:
         return self.world.replay(self.task, np.stack(actions))
 
+    def _to_world(self, u: float, v: float) -> tuple[float, float]:
+        """A canvas click (u, v) in [0, 1] as world (x, y), clipped to the image."""
+        x0, x1, y0, y1 = self.world.image_extent
+        u, v = float(np.clip(u, 0, 1)), float(np.clip(v, 0, 1))
+        return x0 + (x1 - x0) * u, y1 - (y1 - y0) * v
+
+    def _to_canvas(self, x: float, y: float) -> tuple[float, float]:
+        x0, x1, y0, y1 = self.world.image_extent
+        return (x - x0) / (x1 - x0), (y1 - y) / (y1 - y0)
+
 
 class WaypointDemo(DemoInput):
-    """nav2d: the agent walks the clicked path from its start at constant speed."""
+    """ "waypoints": the agent walks the clicked path from its start at constant speed."""
 
     kind = "clicks"
     hint = (
@@ -108,17 +109,10 @@ class WaypointDemo(DemoInput):
 
     def __init__(self, world: World, task: Task) -> None:
         super().__init__(world, task)
-        from sim.nav2d.render import ARENA
-
-        self.arena = ARENA
-        self.points: list[tuple[float, float]] = []  # arena (x, y)
-
-    def _uv(self, x: float, y: float) -> tuple[float, float]:
-        return (x + self.arena) / (2 * self.arena), (self.arena - y) / (2 * self.arena)
+        self.points: list[tuple[float, float]] = []  # world (x, y)
 
     def click(self, u: float, v: float) -> None:
-        x = float(np.clip(-self.arena + 2 * self.arena * u, -self.arena, self.arena))
-        y = float(np.clip(self.arena - 2 * self.arena * v, -self.arena, self.arena))
+        x, y = self._to_world(u, v)
         self.points.append((round(x, 3), round(y, 3)))
 
     def undo(self) -> None:
@@ -161,32 +155,27 @@ class WaypointDemo(DemoInput):
 
     def canvas(self) -> np.ndarray:
         image = super().canvas()
-        uv = [self._uv(x, y) for x, y in self.points]
-        start = self._uv(*self.task.scene.agent[:2])
+        uv = [self._to_canvas(x, y) for x, y in self.points]
+        start = self._to_canvas(*self.task.scene.agent[:2])
         return frames.mark_points(image, uv, start_uv=start, colours=((255, 140, 0),))
 
 
+ARROWS = {"arrowleft": "←", "arrowright": "→", "arrowup": "↑", "arrowdown": "↓"}
+
+
 class KeyDemo(DemoInput):
-    """doorkey: one step per key press or button; the rest of the episode turns left."""
+    """ "keys": one step per key press or button; the world's idle action fills the rest."""
 
     kind = "keys"
-    hint = (
-        "Drive the agent: ← / → turn, ↑ forward, P pick up, D drop, T toggle (or the buttons). "
-        "Steps left after the goal are filled by turning."
-    )
 
     def __init__(self, world: World, task: Task) -> None:
         super().__init__(world, task)
-        from sim.doorkey import layout as L
-
-        self.fill = L.LEFT
-        self.keys = (
-            Key("turn left", "arrowleft", L.LEFT),
-            Key("turn right", "arrowright", L.RIGHT),
-            Key("forward", "arrowup", L.FORWARD),
-            Key("pick up", "P", L.PICKUP),
-            Key("drop", "D", L.DROP),
-            Key("toggle", "T", L.TOGGLE),
+        self.fill = world.idle_action
+        self.keys = world.keys
+        names = ", ".join(f"{ARROWS.get(k.hotkey, k.hotkey)} {k.label}" for k in world.keys)
+        self.hint = (
+            f"Drive the agent: {names} (or the buttons). Steps left after the end are filled "
+            "by the idle action."
         )
         self.actions: list[int] = []
         self.scenes = [task.scene]
@@ -232,23 +221,20 @@ class KeyDemo(DemoInput):
 
 
 class PickPlaceDemo(DemoInput):
-    """tabletop: the first click is where to pick, the second where to place."""
+    """ "pick_place": the first click is where to pick, the second where to place."""
 
     kind = "clicks"
     hint = "Click the object to pick, then the place to put it (a third click starts over)."
 
     def __init__(self, world: World, task: Task) -> None:
         super().__init__(world, task)
-        from sim.tabletop.tasks import VIEW_HALF_M
-
-        self.half_m = VIEW_HALF_M
-        self.points: list[tuple[float, float]] = []  # table (x, y) in metres
+        self.points: list[tuple[float, float]] = []  # world (x, y), metres on the table
 
     def click(self, u: float, v: float) -> None:
         if len(self.points) == 2:
             self.points.clear()
-        h = self.half_m
-        self.points.append((round(-h + 2 * h * u, 4), round(h - 2 * h * v, 4)))
+        x, y = self._to_world(u, v)
+        self.points.append((round(x, 4), round(y, 4)))
 
     def undo(self) -> None:
         if self.points:
@@ -276,8 +262,7 @@ class PickPlaceDemo(DemoInput):
         return self._rollout([np.array([px, py, qx, qy], np.float32)])
 
     def canvas(self) -> np.ndarray:
-        h = self.half_m
-        uv = [((x + h) / (2 * h), (h - y) / (2 * h)) for x, y in self.points]
+        uv = [self._to_canvas(x, y) for x, y in self.points]
         return frames.mark_points(
             super().canvas(),
             uv,
@@ -287,12 +272,15 @@ class PickPlaceDemo(DemoInput):
 
 
 INPUTS: dict[str, type[DemoInput]] = {
-    "nav2d": WaypointDemo,
-    "doorkey": KeyDemo,
-    "tabletop": PickPlaceDemo,
+    "waypoints": WaypointDemo,
+    "keys": KeyDemo,
+    "pick_place": PickPlaceDemo,
 }
 
 
 def input_for(world: World, task: Task) -> DemoInput:
-    """The demonstration input of the task's world (only the expert for unknown worlds)."""
-    return INPUTS.get(world.name, DemoInput)(world, task)
+    """The demonstration input the world declares (only the expert for "file" worlds)."""
+    kind = world.demo_input
+    if kind in ("waypoints", "pick_place") and world.image_extent is None:
+        kind = "file"  # a click input needs to know where the image lies in the world
+    return INPUTS.get(kind, DemoInput)(world, task)

@@ -34,7 +34,7 @@ from dfa_viz.loop import (
 from policy import Policy, training_demos
 from policy.evaluate import Score, score
 from search import SearchResult
-from sim import WORLDS, get_world
+from sim import check_world_name, get_world
 from sim.core import (
     Feedback,
     Label,
@@ -49,9 +49,10 @@ VERSION = 1
 
 
 def _world(value: str, name: str) -> str:
-    if value not in WORLDS:
-        raise UserError(f"{name}: unknown world {value!r}; accepted: {', '.join(WORLDS)}")
-    return value
+    try:
+        return check_world_name(value)
+    except UserError as e:
+        raise UserError(f"{name}: {e}") from None
 
 
 def _shift(value: str, name: str) -> str:

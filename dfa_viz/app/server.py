@@ -20,9 +20,9 @@ import websockets.asyncio.server
 from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_port, url
 from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
-from dfa_viz.app.state import LoopState
+from dfa_viz.app.state import LoopState, Policies
 from dfa_viz.configs import AdaptConfig, DemoArgs, ServeArgs
-from sim import WORLDS, get_world
+from sim import check_world_name, world_names
 from sim.core import UserError, check_shift
 
 
@@ -48,9 +48,11 @@ def open_state(
     session: Path | None = None,
     out: Path = Path("recordings"),
     adapt: AdaptConfig = AdaptConfig(),
+    policy: str | None = None,
 ) -> LoopState:
-    """The loop state of a session folder (resumed), or of a new one under out/sessions/."""
-    get_world(world)  # an unknown world: one line, before anything is created
+    """The loop state of a session folder (resumed), or of a new one under out/sessions/;
+    `policy` (a policy.outside spec) is diagnosed in `world` instead of its base policy."""
+    check_world_name(world)  # an unknown world: one line, before anything is created
     adapt.check()
     sess = (
         Session.open(session, world=world)
@@ -60,7 +62,8 @@ def open_state(
     try:
         for note in sess.notes:
             print(f"dfa serve: {note}", flush=True)
-        return LoopState(sess, out=out, adapt_config=adapt)
+        policies = Policies(spec=policy, world=world)
+        return LoopState(sess, out=out, adapt_config=adapt, policies=policies)
     except BaseException:
         sess.close()
         raise
@@ -149,7 +152,9 @@ def start(
         print(f"dfa serve: {note}", flush=True)
     server.gui.configure_theme(show_share_button=False, brand_color=(28, 126, 214))
     app = App(server, state, url(host, bound))
-    worlds = tuple(WORLDS)
+    worlds = tuple(n for n in world_names() if not n.endswith(":..."))
+    if state.world_name not in worlds:
+        worlds = (*worlds, state.world_name)
     lock = threading.Lock()
 
     @server.on_client_connect
@@ -177,14 +182,15 @@ def wait_idle(state: LoopState, *, timeout_s: float = 600.0) -> None:
 
 def serve(args: ServeArgs) -> None:
     """Serve the page until interrupted (Ctrl-C); the session folder keeps everything."""
-    app = start(
+    serving_port(args.host, args.port)  # a bad --host or --port: before any folder is made
+    state = open_state(
         world=args.world,
-        port=args.port,
-        host=args.host,
         session=args.session,
         out=args.out,
         adapt=args.adapt,
+        policy=args.policy,
     )
+    app = start(port=args.port, host=args.host, state=state)
     _block(app)
 
 

@@ -31,6 +31,7 @@ from dfa_viz.app.view import View
 from dfa_viz.loop import AdaptConfig, RunRecord, adapt, diagnose, evaluate, start
 from dfa_viz.recording import write_recording
 from policy import Policy, base_policy, failing_test_task, save_policy, training_demos
+from policy.outside import load
 from search import SearchConfig
 from sim import get_world
 from sim.core import Label, UserError, World, check_seed, check_shift, require_success
@@ -40,24 +41,33 @@ LOSS_NOTIFY_S = 0.2  # at most this often while finetuning
 
 
 class Policies:
-    """Base policies and training demonstrations by world, made (or loaded) once per process."""
+    """The policy diagnosed in each world (its base policy, or the one `dfa serve --policy`
+    names for the world the page opens on) and the training demonstrations, made once per
+    process."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, spec: str | None = None, world: str | None = None) -> None:
         self._lock = threading.Lock()
         self._policies: dict[str, Policy] = {}
         self._known: dict[str, tuple] = {}
+        self._spec, self._spec_world = spec, world
 
     def get(self, world: World) -> Policy:
         with self._lock:
             if world.name not in self._policies:
-                self._policies[world.name] = base_policy(world)
+                if self._spec is not None and world.name == self._spec_world:
+                    policy = load(self._spec, world)
+                else:
+                    policy = base_policy(world)
+                policy.fits(world)
+                self._policies[world.name] = policy
             return self._policies[world.name]
 
     def known(self, world: World) -> tuple:
-        """The base policy's training demonstrations (variant sources, replayed)."""
+        """The base policy's training demonstrations (variant sources, replayed), where the
+        world has a training distribution."""
         with self._lock:
             if world.name not in self._known:
-                self._known[world.name] = tuple(training_demos(world))
+                self._known[world.name] = tuple(training_demos(world)) if world.benchmark else ()
             return self._known[world.name]
 
 
@@ -393,9 +403,10 @@ class LoopState:
                 on_loss=on_loss,
             )
             self.jobs.progress(0.92, "scoring both policies on fresh tasks")
-            evaluation = evaluate(
-                world, base, adaptation.policy, rec.task, n=config.finetuning.n_eval, seed=rec.seed
-            )
+            evaluation = None  # a world without fresh tasks is not scored
+            if world.benchmark:
+                n = config.finetuning.n_eval
+                evaluation = evaluate(world, base, adaptation.policy, rec.task, n=n, seed=rec.seed)
             rollout_file = self.session.save_trajectory(adaptation.rollout, "finetuned")
             policy_dir = self.session.next_name("policy")
             save_policy(

@@ -27,7 +27,7 @@ from sim.core.task import (
     draw_from_reward,
 )
 from sim.core.trajectory import Trajectory
-from sim.core.world import ActBatch, World
+from sim.core.world import ActBatch, Benchmark, Key, World
 
 __all__ = [
     "ABSENT",
@@ -38,11 +38,13 @@ __all__ = [
     "SHIFTS",
     "TRAIN",
     "ActBatch",
+    "Benchmark",
     "Change",
     "Concept",
     "ConceptSpace",
     "Edit",
     "Feedback",
+    "Key",
     "Label",
     "Obj",
     "Reward",

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -11,25 +13,56 @@ from sim.core.concepts import ConceptSpace
 from sim.core.edit import Edit, apply
 from sim.core.errors import UserError
 from sim.core.scene import Scene
-from sim.core.task import Task
+from sim.core.task import SHIFTS, Reward, Task
 from sim.core.trajectory import Trajectory
+from sim.core.view3d import View3D
 
 # obs uint8 (B, H, W, 3) -> actions float32 (B, A) or int64 (B,)
 ActBatch = Callable[[np.ndarray], np.ndarray]
+DemoInput = Literal["waypoints", "keys", "pick_place", "file"]
+
+
+@dataclass(frozen=True)
+class Key:
+    """A discrete action the page offers as a button and a hotkey (demo_input "keys")."""
+
+    label: str
+    hotkey: str
+    """A viser HotkeyKey, e.g. "arrowleft" or "P"."""
+    action: int
 
 
 class World(abc.ABC):
-    """One world: its concept space, renderer (Phi^-1), dynamics, expert and task generator.
+    """One world: what diagnosing a policy in it needs, and the capabilities tools read.
+
+    A world must give its concept space, a renderer (Phi^-1), dynamics and R' as a success
+    predicate; the editor f comes from the concept space. What the paper's benchmark adds (a
+    training distribution, planted shifts, fresh tasks to score on, a scripted expert) is
+    `Benchmark`'s: a plain World is diagnosed from a user's demonstration.
 
     Attributes set by each world:
-        name: registry name ("nav2d", "doorkey", "tabletop").
+        name: registry name ("nav2d", "doorkey", "tabletop", "minigrid:<EnvId>", ...).
         space: the concept space.
         horizon: steps per episode (T).
         obs_shape: (H, W, 3) of a rendered observation.
         discrete: True when actions are integers in [0, action_dim).
         action_dim: continuous action size, or the number of discrete actions.
         epsilon: the search's per-step L1 bound on action distance (continuous worlds).
+
+    Capabilities, each with a default (tools read these, never the world's name):
         lossless_frames: record frames losslessly (small synthetic images) instead of JPEG.
+        search_first_only: a size >= 2 search stops at its first valid edit (large spaces).
+        search_max_candidates: the search stops after this many candidates (None: never).
+        demo_input: how the page takes a demonstration: "waypoints" (clicks on the image; an
+            action moves the agent, scene.agent[:2], by (dx, dy)), "keys" (`keys`, one step
+            each), "pick_place" (a click to pick, one to place: action (pick x, y, place x,
+            y)), or "file" (a saved trajectory only).
+        keys, idle_action: for "keys", the buttons and hotkeys, and the action that fills the
+            steps left after the user stops.
+        image_extent: (x_left, x_right, y_bottom, y_top) of the rendered frame in the world's
+            coordinates, for the click inputs.
+        view3d: a 3D scene (sim.core.view3d.View3D), or None.
+        shifts: the shift kinds `test_task` makes (Benchmark worlds).
     """
 
     name: str
@@ -40,6 +73,16 @@ class World(abc.ABC):
     action_dim: int
     epsilon: float = 0.0
     lossless_frames: bool = False
+    search_first_only: bool = False
+    search_max_candidates: int | None = None
+    demo_input: DemoInput = "file"
+    keys: tuple[Key, ...] = ()
+    idle_action: int = 0
+    image_extent: tuple[float, float, float, float] | None = None
+    view3d: View3D | None = None
+    shifts: tuple[str, ...] = ()
+    benchmark: bool = False
+    """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod
@@ -75,37 +118,33 @@ class World(abc.ABC):
     def meets_reward(self, task: Task, scenes: Sequence[Scene]) -> bool:
         """R' on the finite states of one rollout (what `success` asks of each world)."""
 
-    # -- tasks and demonstrations -------------------------------------------------------------
+    # -- scenes, tasks and variants ----------------------------------------------------------
     @abc.abstractmethod
-    def train_task(self, seed: int) -> Task:
-        """A task from the training distribution the base policy is cloned on."""
+    def sample_scene(self, seed: int) -> Scene:
+        """A scene of this world (what its gymnasium env resets to; the contract tests use it)."""
 
-    @abc.abstractmethod
-    def test_task(self, shift: str, seed: int) -> Task:
-        """A shifted test task of kind `shift` (one of sim.core.task.SHIFTS)."""
+    def task_for(self, scene: Scene) -> Task:
+        """A task for a scene a user brings (e.g. their demonstration's first scene): R' is
+        the world's success predicate, and names no concept relevant."""
+        return Task(
+            self.name,
+            scene,
+            Reward("do what the world's success predicate asks", frozenset()),
+            "user",
+            0,
+        )
 
-    @abc.abstractmethod
-    def fresh_tasks(
-        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
-    ) -> list[Task]:
-        """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning).
-
-        layouts: "task" keeps the task's positions (R' is about how things look); "train"
-        places the objects as a random training layout does, so success also asks whether
-        what the policy learnt carries over to every layout it was trained on. The `other`
-        shift varies positions beyond the training layouts either way.
-        shifted: every task carries the task's shift: its cause (slot, concept) takes a value
-        R' accepts that training never showed (a distractor is present); the rest of R' is
-        drawn as usual.
-        """
-
-    @abc.abstractmethod
-    def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
-        """The scripted demonstrator's action in `scene`: float32 (A,) or int64 scalar."""
-
-    @abc.abstractmethod
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
-        """Positions for adding `slot` to the demonstration's scenes without blocking its path."""
+        """Positions for adding `slot` to the demonstration's scenes without blocking its path
+        ([] by default: a variant can then remove the object, not add it)."""
+        return []
+
+    def make_env(self):
+        """This world as a gymnasium environment (the generic sim.core.env.SceneEnv unless the
+        world has its own)."""
+        from sim.core.env import SceneEnv
+
+        return SceneEnv(self)
 
     # -- rollouts, written once ---------------------------------------------------------------
     def rollout_batch(
@@ -114,12 +153,20 @@ class World(abc.ABC):
         """Roll `act` out on many tasks in lockstep: one batched render and act per step.
 
         scenes: initial scenes to start from instead of the tasks' own (e.g. edited ones).
+        Once every episode has ended, the steps left repeat the last frame and action (an
+        ended scene does not change, whatever the action).
         """
         cur = list(scenes if scenes is not None else (t.scene for t in tasks))
         history = [[s] for s in cur]
         frames = [self.render_batch(cur)]  # each (B, H, W, 3)
         actions = []
         for t in range(self.horizon):
+            if actions and all(self.done(s) for s in cur):
+                frames.append(frames[-1])
+                actions.append(actions[-1])
+                for h in history:
+                    h.append(h[-1])
+                continue
             a = np.asarray(act(frames[-1]))  # (B, A) | (B,)
             if not self.discrete and not np.isfinite(a).all():
                 raise UserError(
@@ -149,6 +196,43 @@ class World(abc.ABC):
             scenes.append(self.step_batch([scenes[-1]], np.asarray(a)[None])[0])
         obs = self.render_batch(scenes)  # (T+1, H, W, 3)
         return Trajectory(tuple(scenes), obs, np.asarray(actions), self.success(task, scenes))
+
+
+class Benchmark(World):
+    """A World with the paper's benchmark generator: a training distribution the base policy
+    is cloned on, the planted shifts (`shifts`), fresh tasks to score on, a scripted expert."""
+
+    shifts: tuple[str, ...] = SHIFTS
+    benchmark = True
+
+    def sample_scene(self, seed: int) -> Scene:
+        return self.train_task(seed).scene
+
+    @abc.abstractmethod
+    def train_task(self, seed: int) -> Task:
+        """A task from the training distribution the base policy is cloned on."""
+
+    @abc.abstractmethod
+    def test_task(self, shift: str, seed: int) -> Task:
+        """A shifted test task of kind `shift` (one of `shifts`)."""
+
+    @abc.abstractmethod
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
+        """n fresh tasks drawn from the R' of `task` (for evaluation after finetuning).
+
+        layouts: "task" keeps the task's positions (R' is about how things look); "train"
+        places the objects as a random training layout does, so success also asks whether
+        what the policy learnt carries over to every layout it was trained on. The `other`
+        shift varies positions beyond the training layouts either way.
+        shifted: every task carries the task's shift (sim.core.carrying_shift); the rest of
+        R' is drawn as usual.
+        """
+
+    @abc.abstractmethod
+    def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
+        """The scripted demonstrator's action in `scene`: float32 (A,) or int64 scalar."""
 
     def demonstrate(self, task: Task) -> Trajectory:
         """The scripted expert's closed-loop demonstration of `task`."""

@@ -21,7 +21,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sim.core import Concept, ConceptSpace, Obj, Scene, Slot
+from sim.core import Obj, Scene
+from sim.doorkey.concepts import (  # noqa: F401 (the names the rest of the world imports from here)
+    COLOUR,
+    LAVA_COLOUR,
+    LAVA_COLOURS,
+    LAVA_SLOTS,
+    OBJ_COLOURS,
+    OBJ_SLOTS,
+    SLOT_NAMES,
+    SPACE,
+)
 
 WORLD = "doorkey"
 GRID = 12  # cells per side
@@ -39,21 +49,6 @@ N_ACTIONS = 6
 DIR_TO_VEC = ((1, 0), (0, 1), (-1, 0), (0, -1))  # minigrid's DIR_TO_VEC
 OPEN, CLOSED, LOCKED = 0, 1, 2  # door states, minigrid's STATE_TO_IDX
 
-OBJ_COLOURS = ("red", "green", "blue", "yellow")
-LAVA_COLOURS = ("orange", "pink")
-OBJ_SLOTS = ("key", "door", "goal")
-LAVA_SLOTS = ("lava0", "lava1", "lava2")
-COLOUR = Concept("colour", OBJ_COLOURS)
-LAVA_COLOUR = Concept("colour", LAVA_COLOURS)
-SPACE = ConceptSpace(
-    (
-        Slot("key", (COLOUR,)),
-        Slot("door", (COLOUR,)),
-        Slot("goal", (COLOUR,)),
-        *(Slot(s, (LAVA_COLOUR,), optional=True, kind="lava") for s in LAVA_SLOTS),
-    )
-)
-SLOT_NAMES = OBJ_SLOTS + LAVA_SLOTS
 COLUMNS = {"key": KEY_COL, "door": DOOR_COL, "goal": GOAL_COL}
 
 Cell = tuple[int, int]  # (col, row)

@@ -1,4 +1,17 @@
-"""The DoorKey world (design section 4): render, dynamics, expert, tasks and success."""
+"""DoorKey: pick up the key, open the door, reach the goal on a 12x12 MiniGrid grid (a
+minigrid.MiniGridEnv subclass, 3 px tiles, the agent drawn white).
+
+Concepts  key, door, goal: colour (red, green, blue, yellow); lava0..lava2 (kind "lava"):
+          presence, colour (orange, pink). Any key opens any door.
+Actions   6 discrete: left, right, forward, pick up, drop, toggle; 35 steps.
+Shifts    object_ti / object_tr: the key's, door's or goal's colour changed; distractor_ti /
+          distractor_tr: lava tiles by the door, off the path (R' ignores them / says keep
+          clear); other: the key or the door on a row no training layout has for it.
+Success   on the goal by the last state, never on or next to a lava tile R' avoids.
+
+Files: concepts.py (the space), layout.py (the grid and a scene's integer state), render.py,
+objects.py, dynamics.py, expert.py (breadth-first search), tasks.py, env.py.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Scene, Task, Trajectory, World
+from sim.core import Benchmark, Key, Scene, Task, Trajectory
+from sim.doorkey import layout as L
 from sim.doorkey import tasks
 from sim.doorkey.dynamics import step_scene
 from sim.doorkey.expert import plan
@@ -14,7 +28,7 @@ from sim.doorkey.layout import HORIZON, LEFT, N_ACTIONS, SIZE_PX, SPACE, WORLD, 
 from sim.doorkey.render import Renderer
 
 
-class DoorKeyWorld(World):
+class DoorKeyWorld(Benchmark):
     """Key, door, goal and up to three lava tiles on a 12x12 grid; 6 discrete actions, 35 steps.
 
     Scene.agent = (col, row, dir, carrying, door, t); see sim.doorkey.layout for the layout.
@@ -28,6 +42,16 @@ class DoorKeyWorld(World):
     action_dim = N_ACTIONS
     epsilon = 0.0
     lossless_frames = True  # gridworld frames are recorded without lossy compression
+    demo_input = "keys"
+    keys = (
+        Key("turn left", "arrowleft", L.LEFT),
+        Key("turn right", "arrowright", L.RIGHT),
+        Key("forward", "arrowup", L.FORWARD),
+        Key("pick up", "P", L.PICKUP),
+        Key("drop", "D", L.DROP),
+        Key("toggle", "T", L.TOGGLE),
+    )
+    idle_action = L.LEFT  # the steps left after the goal turn in place
 
     def __init__(self) -> None:
         self._renderer = Renderer()
@@ -80,3 +104,8 @@ class DoorKeyWorld(World):
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return tasks.placements(task, slot, demo)
+
+    def make_env(self):
+        from sim.doorkey.env import DoorKeyEnv
+
+        return DoorKeyEnv()

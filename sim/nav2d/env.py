@@ -13,8 +13,8 @@ class Nav2DEnv(SceneEnv):
     """Observations uint8 (36, 36, 3); actions float32 (2,) in [-1, 1]; 20 steps, then a time
     limit. Reward: minus the distance to the goal."""
 
-    def __init__(self, render_mode: str | None = "rgb_array") -> None:
-        super().__init__(Nav2DWorld(), render_mode)
+    def __init__(self, render_mode: str | None = "rgb_array", world: Nav2DWorld | None = None):
+        super().__init__(world or Nav2DWorld(), render_mode)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
 
     def reward(self) -> float:

@@ -12,12 +12,13 @@ import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")  # before MuJoCo is imported: headless rendering
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import mujoco
 import numpy as np
 
 from sim.core import Obj, Scene
+from sim.core.view3d import Frames
 from sim.tabletop import meshes as M
 from sim.tabletop.model import SLOTS, TIMESTEP_S, Table
 from sim.tabletop.tasks import VIEW_HALF_M
@@ -29,21 +30,6 @@ LOWER_SPEED = 0.5  # m/s
 SETTLE_MAX_S = 1.0
 STILL_SPEED = 0.03  # m/s or rad/s: below this every object counts as at rest
 POSE_DECIMALS = 6  # settled poses are rounded to a micrometre so scenes stay compact
-
-
-@dataclass(frozen=True)
-class Frames:
-    """Poses of the present objects over simulated time during one primitive.
-
-    slots: the present slots, in order; times_s: float (F,);
-    pos: float (F, K, 3) metres; quat: float (F, K, 4) (w, x, y, z); picked: the carried slot.
-    """
-
-    slots: tuple[str, ...]
-    times_s: np.ndarray
-    pos: np.ndarray
-    quat: np.ndarray
-    picked: str | None
 
 
 def _world_hull(obj: Obj) -> np.ndarray:

@@ -17,12 +17,9 @@ from sim.core import (
     ABSENT,
     PRESENCE,
     PRESENT,
-    Concept,
-    ConceptSpace,
     Obj,
     Reward,
     Scene,
-    Slot,
     Task,
     Trajectory,
     check_layouts,
@@ -30,6 +27,7 @@ from sim.core import (
     draw_from_reward,
 )
 from sim.tabletop.catalogue import GOALS, MANIPULATED, SHAPES
+from sim.tabletop.concepts import DISTRACTORS, space  # noqa: F401 (space: the world's)
 
 WORLD = "tabletop"
 VIEW_HALF_M = 0.4  # the camera sees, and actions address, the table square [-0.4, 0.4]^2
@@ -54,21 +52,8 @@ TRAIN_LAYOUTS: tuple[tuple[str, str], ...] = (
 assert TRAIN_LAYOUTS[0] == (OBJECT_AREA, GOAL_AREA)
 TRAIN_OBJECT = ("flower", "red")  # (shape, colour)
 TRAIN_GOAL = ("pan", "blue")
-DISTRACTORS = ("distractor0", "distractor1")
 CLEAR_M = 0.15  # an added distractor keeps this far from every object and pick/place point
 SUCCESS = "on_goal"
-
-
-def space(colours: Sequence[str]) -> ConceptSpace:
-    """Phi's codomain: every slot offers all 29 shapes and the configured colours."""
-    shape, colour = Concept("shape", SHAPES), Concept("colour", tuple(colours))
-    return ConceptSpace(
-        (
-            Slot("object", (shape, colour)),
-            Slot("goal", (shape, colour)),
-            *(Slot(d, (shape, colour), optional=True, kind="distractor") for d in DISTRACTORS),
-        )
-    )
 
 
 def pose(area_or_xy) -> tuple[float, ...]:

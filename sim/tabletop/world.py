@@ -1,9 +1,21 @@
-"""The tabletop world: "put the <object> on the <goal>" with one simulated pick-and-place.
+"""The tabletop: "put the <object> on the <goal>" with one pick-and-place simulated by MuJoCo,
+seen by an 80x80 orthographic camera from above.
 
-Scene layout: slots object, goal, distractor0, distractor1 (the distractors optional), each with
-shape (29) and colour (the configured appearances, 81 by default). Obj.pos is the object's pose
-on the table, (x, y, z, qw, qx, qy, qz) in metres, z = 0 resting on the table top; it is not part
-of Phi. agent = (steps taken,): (0.0,) before the primitive, (1.0,) after it.
+Concepts  object, goal, distractor0, distractor1 (kind "distractor", optional): shape (29)
+          and colour (the configured appearances, 81 by default; sim.tabletop.concepts).
+Actions   one primitive per episode: (pick x, pick y, place x, place y) in table metres.
+Shifts    object_ti / object_tr: the object's or the goal's shape or colour changed;
+          distractor_ti / distractor_tr: one or two distractors in free quadrants (R'
+          ignores them / says do not touch them); other: the object or the goal in the
+          centre, where no training layout puts anything.
+Success   the object's centre within 0.10 m of the goal's after settling, no distractor's
+          centre that close, every avoided distractor moved less than 0.02 m.
+
+Scene: Obj.pos is the object's pose on the table, (x, y, z, qw, qx, qy, qz) in metres, z = 0
+resting on the table top; it is not part of Phi. agent = (steps taken,). Files: concepts.py,
+catalogue.py, shapes.py, meshes.py, colours.py, textures.py, model.py (the MuJoCo model),
+render.py, physics.py (dynamics), pose.py, view3d.py, tasks.py (layouts, shifts, the expert's
+targets), env.py.
 """
 
 from __future__ import annotations
@@ -13,7 +25,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Reward, Scene, Task, Trajectory, UserError, World, carrying_shift
+from sim.core import Benchmark, Reward, Scene, Task, Trajectory, UserError, carrying_shift
 from sim.tabletop import tasks as TK
 from sim.tabletop.colours import ALL_COLOURS, DEFAULT_COLOURS
 
@@ -26,7 +38,7 @@ def _dist_xy(a: Sequence[float], b: Sequence[float]) -> float:
     return float(np.hypot(a[0] - b[0], a[1] - b[1]))
 
 
-class TabletopWorld(World):
+class TabletopWorld(Benchmark):
     """One primitive per episode: action float32 (4,) = (pick_x, pick_y, place_x, place_y) m.
 
     colours: the colour concept's instantiations (any of sim.tabletop.colours.ALL_COLOURS).
@@ -40,10 +52,11 @@ class TabletopWorld(World):
     discrete = False
     action_dim = 4
     epsilon = 0.06
-    has_3d = True  # the recorder adds dfa_viz.scene3d's meshes and poses
     # about 440 single edits and 95,000 pairs: a size-2 search stops at its first valid edit
     search_first_only = True
     search_max_candidates = 20_000  # ~30 s: "no counterfactual" among the most promising
+    demo_input = "pick_place"
+    image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
 
     def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]
@@ -58,6 +71,9 @@ class TabletopWorld(World):
         self.space = TK.space(self.colours)
         self._lock = threading.RLock()
         self._sim = None  # (Table, TopCamera, PickPlace), built on first use
+        from sim.tabletop.view3d import TabletopView3D
+
+        self.view3d = TabletopView3D(self)
 
     # -- MuJoCo, lazily -----------------------------------------------------------------------
     def _parts(self):
@@ -125,6 +141,11 @@ class TabletopWorld(World):
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return TK.placements(task, slot, demo)
+
+    def make_env(self):
+        from sim.tabletop.env import TabletopEnv
+
+        return TabletopEnv(world=self)
 
 
 def on_goal(reward: Reward, scenes: Sequence[Scene]) -> bool:

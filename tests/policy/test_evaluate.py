@@ -64,7 +64,7 @@ def test_carrying_the_shift_narrows_only_the_cause(nav):
 
 
 def test_fresh_tasks_over_training_layouts(nav, nav_policy):
-    from sim.nav2d.world import TRAIN_LAYOUTS
+    from sim.nav2d.tasks import TRAIN_LAYOUTS
 
     task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
     same = nav.fresh_tasks(task, 30, seed=2)

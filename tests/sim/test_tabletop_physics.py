@@ -10,7 +10,7 @@ from sim.core import SHIFTS
 from sim.tabletop import tasks as TK
 from sim.tabletop.catalogue import SHAPES
 from sim.tabletop.meshes import shape_mesh
-from sim.tabletop.pose import object_poses, step_with_frames
+from sim.tabletop.pose import object_poses
 from sim.tabletop.world import SUCCESS_RADIUS_M
 
 
@@ -26,7 +26,7 @@ def _xy_dist(a, b) -> float:
 def test_pick_place_carries_the_object_and_it_settles_on_the_goal(world):
     task = world.train_task()
     action = world.expert_action(task, task.scene)
-    frames, after = step_with_frames(world, task.scene, action, every=5)
+    frames, after = world.step_with_frames(task.scene, action, every=5)
     k = frames.slots.index("object")
     assert frames.picked == "object"
     assert frames.pos.shape == (len(frames.times_s), len(frames.slots), 3)
