@@ -26,6 +26,7 @@ from sim.core import (
     check_demonstration,
     check_seed,
     check_shift,
+    files,
     require_success,
 )
 
@@ -143,7 +144,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     finally:
         for bar in bars.values():
             bar.close()
-    path = args.out / f"{world.name}-{args.shift}-seed{args.seed}.rrd"
+    path = args.out / files.safe_name(f"{world.name}-{args.shift}-seed{args.seed}.rrd")
     record = replace(record, recording=str(path))
     write_recording(path, world, record)
     return record

@@ -78,9 +78,11 @@ def describe(world) -> str:
         slots.append(f"{s.name}[{', '.join(names)}]")
     acts = f"{world.action_dim} discrete" if world.discrete else f"{world.action_dim}-d continuous"
     kind = "shifts " + "/".join(world.shifts) if world.shifts else "diagnosis from a demonstration"
+    steps = "1 step" if world.horizon == 1 else f"up to {world.horizon} steps"
+    demo = world.demo_input.replace("_", " and ")
     return (
         f"{' '.join(slots)}; frames {world.obs_shape[0]}x{world.obs_shape[1]}, {acts} actions, "
-        f"{world.horizon} steps; demonstrations by {world.demo_input}; {kind}"
+        f"{steps}; demonstrations by {demo}; {kind}"
     )
 
 

@@ -95,7 +95,7 @@ class RunArgs:
     """
 
     world: str = "nav2d"
-    """nav2d, doorkey or tabletop."""
+    """A registered world (`dfa worlds` lists them) or minigrid:ENV_ID[:tile=N][:view=partial]."""
     shift: str = "object_ti"
     """object_ti, object_tr, distractor_ti, distractor_tr or other."""
     seed: int = 0
@@ -153,8 +153,14 @@ class BenchArgs:
     (load, slider latency, finetune round trip).
     """
 
-    worlds: tuple[str, ...] = ("nav2d", "doorkey", "tabletop")
-    """Which worlds to measure."""
+    worlds: tuple[str, ...] = (
+        "nav2d",
+        "doorkey",
+        "tabletop",
+        "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12",
+    )
+    """Which worlds to measure (the MiniGrid one with the stable-baselines3 agent of
+    docs/examples)."""
     repeats: int = 3
     """Timing repeats (the best is reported)."""
     page: bool = True
@@ -172,7 +178,7 @@ class ServeArgs:
     """
 
     world: str = "nav2d"
-    """The world the page opens on."""
+    """The world the page opens on (any `dfa worlds` lists, or minigrid:ENV_ID)."""
     port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None
     """When left out, 8080 or the next free one; a port given must be free (0: any)."""
     host: str = "127.0.0.1"

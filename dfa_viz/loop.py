@@ -317,6 +317,8 @@ def run_loop(
     record = dataclasses.replace(record, diagnosis=diagnosis)
     feedback = user.label(task, diagnosis.edit if diagnosis.edit is not None else EMPTY)
     record = dataclasses.replace(record, feedback=feedback)
+    if policy.net is None:  # an ONNX graph: diagnosed, not finetuned
+        return record
     adaptation = adapt(
         world,
         policy,

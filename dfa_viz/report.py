@@ -29,6 +29,11 @@ def format_report(r: RunRecord) -> str:
         kind = "TR" if lab.relevant else f"TI (acceptable: {', '.join(lab.acceptable)})"
         lines.append(f"  feedback: {lab.slot}.{lab.concept} is {kind}")
     ad, ev = r.adaptation, r.evaluation
+    if ad is None and r.feedback.labels:
+        lines.append(
+            "  not adapted: this policy can be run but not trained (an ONNX graph); give a "
+            "PyTorch, stable-baselines3 or own checkpoint to finetune it"
+        )
     if ad is not None:
         loss = f", final loss {ad.losses[-1]:.4f}" if ad.losses else ""
         lines.append(

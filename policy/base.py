@@ -41,7 +41,7 @@ from policy.train import (
     training_demos,
     training_tasks,
 )
-from sim.core import Trajectory, UserError, World
+from sim.core import Trajectory, UserError, World, files
 
 WEIGHTS = Path(__file__).parent / "weights"
 RECORD_SEED = 0  # the seed whose base policies are committed
@@ -112,10 +112,17 @@ def recipe_change(then: dict, now: dict) -> str | None:
 def base_folder(world: World, *, seed: int = RECORD_SEED, config: TrainConfig = BASE) -> Path:
     """Where a world's base policy is kept: policy/weights/<world>/ for the policies of record
     (seed 0, the default recipe), else a cache folder named by the recipe."""
-    if seed == RECORD_SEED and config == BASE:
+    if of_record(world, seed, config):
         return WEIGHTS / world.name
     now = recipe(world, training_demos(world, seed), seed=seed, config=config)
     return _cached(now)
+
+
+def of_record(world: World, seed: int, config: TrainConfig) -> bool:
+    """True for the policies of record: seed 0 and the default recipe of a world whose weights
+    are committed (other worlds, e.g. any MiniGrid environment, are cached outside the
+    repository)."""
+    return seed == RECORD_SEED and config == BASE and (WEIGHTS / world.name).is_dir()
 
 
 def base_policy(
@@ -131,7 +138,7 @@ def base_policy(
     writes it where it is kept (policy/weights/<world>/ for the policies of record)."""
     demos = training_demos(world, seed)
     now = recipe(world, demos, seed=seed, config=config)
-    record = seed == RECORD_SEED and config == BASE
+    record = of_record(world, seed, config)
     folder = WEIGHTS / world.name if record else _cached(now)
     if record and not retrain and (folder / "config.json").is_file():
         then = read_config(folder).get("meta", {}).get("recipe", {})
@@ -163,4 +170,4 @@ def base_policy(
 
 def _cached(now: dict) -> Path:
     key = _sha(json.dumps({k: v for k, v in now.items() if k != "frame_colours"}, sort_keys=True))
-    return cache_dir() / "policies" / f"{now['world']}-{key}"
+    return cache_dir() / "policies" / files.safe_name(f"{now['world']}-{key}")

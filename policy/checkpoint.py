@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from safetensors import SafetensorError
+from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 from policy.model import ImagePolicy, Policy, PolicyConfig
@@ -31,15 +31,56 @@ def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None)
         raise UserError("this policy has no weights of its own to save (an ONNX graph)")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    state = {k: v.detach().contiguous() for k, v in policy.net.state_dict().items()}
+    state, aliases = unique_tensors(policy.net.state_dict())
     with files.atomic_path(folder / "model.safetensors") as tmp:
-        save_file(state, str(tmp))
+        save_file(state, str(tmp), metadata={"aliases": json.dumps(aliases)} if aliases else None)
     if policy.source is None:
         doc = {"policy": policy.config.to_dict(), "meta": meta or {}}
     else:
         doc = {"source": policy.source, "meta": meta or {}}
     files.write_text(folder / "config.json", json.dumps(doc, indent=2) + "\n")
     return folder
+
+
+def unique_tensors(
+    state: dict[str, torch.Tensor],
+) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
+    """A state dict with each shared tensor once (e.g. stable-baselines3's actor and critic
+    share one features extractor), and {alias: the name it is stored under}."""
+    kept: dict[tuple, str] = {}
+    unique: dict[str, torch.Tensor] = {}
+    aliases: dict[str, str] = {}
+    for name, t in state.items():
+        key = (t.untyped_storage().data_ptr(), t.storage_offset(), tuple(t.shape), t.stride())
+        if key in kept:
+            aliases[name] = kept[key]
+        else:
+            kept[key] = name
+            unique[name] = t.detach().contiguous()
+    return unique, aliases
+
+
+def _read_tensors(weights: Path) -> dict[str, torch.Tensor]:
+    """Every tensor of a model.safetensors, the shared ones under each of their names."""
+    try:
+        state = load_file(weights)
+        with safe_open(weights, "pt") as f:
+            meta = f.metadata() or {}
+    except (SafetensorError, OSError) as e:
+        raise UserError(f"checkpoint {weights}: not a readable safetensors file ({e})") from None
+    try:
+        aliases = json.loads(meta.get("aliases", "{}"))
+        ok = isinstance(aliases, dict) and all(
+            isinstance(a, str) and isinstance(k, str) and k in state for a, k in aliases.items()
+        )
+    except (json.JSONDecodeError, RecursionError):
+        ok = False
+    if not ok:
+        raise UserError(
+            f"checkpoint {weights}: its 'aliases' metadata is not a JSON object naming stored "
+            "tensors"
+        )
+    return state | {alias: state[name] for alias, name in aliases.items()}
 
 
 def read_config(folder: str | Path) -> dict[str, Any]:
@@ -145,10 +186,7 @@ def load_policy(folder: str | Path, *, world: World) -> Policy:
         net = policy.net
     else:
         net = ImagePolicy(config_for(folder, world))
-    try:
-        state = load_file(weights)
-    except (SafetensorError, OSError) as e:
-        raise UserError(f"checkpoint {weights}: not a readable safetensors file ({e})") from None
+    state = _read_tensors(weights)
     expected = net.state_dict()
     if set(state) != set(expected):
         raise UserError(

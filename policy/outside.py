@@ -322,11 +322,12 @@ def load(spec: str, world) -> Policy:
         return load_policy(Path(spec), world=world)
     target, _, obs_text = rest.partition("#")
     obs = ObsSpec.parse(obs_text)
+    tail = f"#{obs_text}" if obs_text else ""  # a source names its files by absolute paths
     if kind == "onnx":
         path = Path(target)
         if not path.is_file():
             raise UserError(f"onnx:{target}: no such file")
-        return _probe(OnnxPolicy(path, world, obs, spec), world)
+        return _probe(OnnxPolicy(path, world, obs, f"onnx:{path.resolve()}{tail}"), world)
     if kind == "torch":
         where, _, weights = target.rpartition("@")
         if not where or not Path(weights).is_file():
@@ -337,7 +338,7 @@ def load(spec: str, world) -> Policy:
             discrete=world.discrete,
             obs_shape=world.obs_shape,
             action_dim=world.action_dim,
-            source=spec,
+            source=f"torch:{where}@{Path(weights).resolve()}{tail}",
         )
         return _probe(policy, world)
     if obs_text:
@@ -345,4 +346,4 @@ def load(spec: str, world) -> Policy:
     path = Path(target)
     if not path.is_file():
         raise UserError(f"sb3:{target}: no such file")
-    return _probe(load_sb3(path, world, spec), world)
+    return _probe(load_sb3(path, world, f"sb3:{path.resolve()}"), world)

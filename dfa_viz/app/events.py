@@ -386,7 +386,7 @@ def apply(
                         rec.demo,
                         event.feedback,
                         config=event.config,
-                        known=training_demos(world),
+                        known=training_demos(world) if world.benchmark else (),
                         seed=rec.seed,
                     )
                 )
@@ -398,11 +398,11 @@ def apply(
                 rebuild.trajectory(event.rollout_file),
             )
             before, after = event.before, event.after
-            if before is None or after is None:  # an older session: score again
+            if (before is None or after is None) and world.benchmark:  # older: score again
                 tuned = rebuild.checkpoint(event.policy_dir, world)
                 before = score(world, rebuild.policy(world), rec.task, seed=rec.seed)
                 after = score(world, tuned, rec.task, seed=rec.seed)
-            evaluation = Evaluation(before, after)
+            evaluation = None if before is None or after is None else Evaluation(before, after)
         return dataclasses.replace(
             rec, adaptation=adaptation, evaluation=evaluation, feedback=adaptation.feedback
         )

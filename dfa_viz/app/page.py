@@ -19,7 +19,8 @@ from dfa_viz.app.feedback import FeedbackSection
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
 from dfa_viz.app.view import View
-from sim.core import SHIFTS, UserError
+from sim import get_world
+from sim.core import UserError
 
 
 class Page:
@@ -39,7 +40,8 @@ class Page:
 
         with gui.add_folder("1 · Task"):
             self.world = gui.add_dropdown("world", worlds, initial_value=state.world_name)
-            self.shift = gui.add_dropdown("shift", SHIFTS, initial_value="distractor_ti")
+            shifts = shifts_of(state.world_name)
+            self.shift = gui.add_dropdown("shift", shifts, initial_value=default_shift(shifts))
             self.seed = gui.add_number("seed", 0, min=0, step=1)
             self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY)
             self.next = gui.add_button("Next task", icon=viser.Icon.PLAYER_TRACK_NEXT)
@@ -114,6 +116,11 @@ class Page:
             self._guard(lambda _: s.pick(self.world.value, self.shift.value, int(self.seed.value)))
         )
         self.next.on_click(self._guard(lambda _: s.next_task()))
+
+        @self.world.on_update
+        def _(_event) -> None:  # the shifts on offer are the chosen world's own
+            self._offer_shifts(self.world.value)
+
         self.failed.on_click(self._guard(lambda _: s.judge(True)))
         self.succeeded.on_click(self._guard(lambda _: s.judge(False)))
         self.use_demo.on_click(self._guard(lambda _: s.demonstrate(expert=False)))
@@ -128,6 +135,14 @@ class Page:
             if event.client is None or self.tie.value not in self._ties:
                 return
             self._guard(lambda _: s.select_tie(self._ties.index(self.tie.value)))(event)
+
+    def _offer_shifts(self, world: str) -> None:
+        shifts = shifts_of(world)
+        if tuple(self.shift.options) != shifts:
+            keep = self.shift.value in shifts
+            self.shift.options = shifts
+            if keep:
+                self.shift.value = self.shift.value
 
     def _download(self, _event) -> None:
         path = self.state.write_recording()
@@ -158,13 +173,16 @@ class Page:
         run, stage = view.record, view.stage
         if run is not None and id(run.task) != self._task_shown:
             self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
-            self.world.value, self.shift.value = run.world, run.shift
+            self.world.value = run.world
+            self._offer_shifts(run.world)
+            self.shift.value = run.shift
             self.seed.value = run.seed
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
         self.error.visible = bool(view.error)
+        pickable = get_world(self.world.value).benchmark  # a world with test tasks to load
         for b in (self.load, self.next):
-            b.disabled = busy
+            b.disabled = busy or not pickable
         job = view.job
         for bar, names in (
             (self.task_job, ("task",)),
@@ -268,3 +286,12 @@ class Page:
     def close(self) -> None:
         self.unsubscribe()
         self.compare.close()
+
+
+def shifts_of(world: str) -> tuple[str, ...]:
+    """The shifts a world's test tasks come in (a world without them: one placeholder)."""
+    return get_world(world).shifts or ("none: load a demonstration with dfa run --demo",)
+
+
+def default_shift(shifts: tuple[str, ...]) -> str:
+    return "distractor_ti" if "distractor_ti" in shifts else shifts[0]

@@ -34,7 +34,15 @@ from policy import Policy, base_policy, failing_test_task, save_policy, training
 from policy.outside import load
 from search import SearchConfig
 from sim import get_world
-from sim.core import Label, UserError, World, check_seed, check_shift, require_success
+from sim.core import (
+    Label,
+    UserError,
+    World,
+    check_seed,
+    check_shift,
+    files,
+    require_success,
+)
 
 Listener = Callable[[set[str]], None]
 LOSS_NOTIFY_S = 0.2  # at most this often while finetuning
@@ -166,7 +174,7 @@ class LoopState:
             self.demo_input = None
             # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session and the line of
             # this task in its log: loading another task (or this one again) keeps this one
-            self.recording = self.out / (
+            self.recording = self.out / files.safe_name(
                 f"{event.world}-{event.shift}-seed{event.seed}-{self.session.folder.name}"
                 f"-task{line}.rrd"
             )
@@ -369,6 +377,11 @@ class LoopState:
             if self.busy:
                 return False
         world = get_world(rec.world)
+        if self.policies.get(world).net is None:
+            raise UserError(
+                "this policy can be run but not trained (an ONNX graph): the diagnosis stands; "
+                "give a PyTorch, stable-baselines3 or own checkpoint to finetune"
+            )
         config = self.adapt
         steps = config.train_config(rec.seed).steps
 
@@ -421,8 +434,8 @@ class LoopState:
                 rollout_file,
                 policy_dir,
                 config,
-                evaluation.before,
-                evaluation.after,
+                None if evaluation is None else evaluation.before,
+                None if evaluation is None else evaluation.after,
             )
             self._commit(event, (adaptation, evaluation))
             self._notify({"stage"})

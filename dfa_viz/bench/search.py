@@ -1,4 +1,5 @@
-"""The search against a naive one-candidate loop, timed in the same process."""
+"""The search against a naive one-candidate loop and against the forward-pass bound, timed in
+the same process."""
 
 from __future__ import annotations
 
@@ -39,12 +40,22 @@ def naive_search(
 
 
 def bench_world(
-    name: str, *, repeats: int = 3, shift: str = "distractor_ti", sizes: tuple[int, ...] = (1, 2)
+    name: str,
+    *,
+    repeats: int = 3,
+    shift: str = "distractor_ti",
+    sizes: tuple[int, ...] = (1, 2),
+    policy: str | None = None,
 ) -> dict:
     """Time the whole search over `sizes` (every edit of each size, no early stop), batched in
-    lockstep and naive, on one failing task of `shift`."""
+    lockstep and naive, on one failing task of `shift`; and the forward-pass bound: the
+    candidate-steps the search evaluated divided by the policy's batched forward throughput
+    at the search's batch size. `policy`: a policy spec (policy.outside) instead of the base
+    policy."""
+    from policy.outside import load
+
     world = get_world(name)
-    policy = base_policy(world)
+    policy = base_policy(world) if policy is None else load(policy, world)
     task, _ = failing_test_task(world, policy, shift, 0)
     demo = world.demonstrate(task)
     edits = {k: list(combinations(world.space, task.scene, k)) for k in sizes}
@@ -59,7 +70,15 @@ def bench_world(
         lambda: naive_search(world, policy, task.scene, demo, everything, eps), 1
     )
     assert naive_valid == [c.valid for c in tried], "naive and batched searches disagree"
+    evaluated = int(sum(np.isfinite(c.distances).sum() for c in tried))  # candidate-steps
+    frames = world.render_batch([world.apply(task.scene, e) for e in everything])  # (N, H, W, 3)
+    t_forward, _ = best_of(lambda: policy.outputs(frames), max(repeats, 5))
+    bound = evaluated * t_forward / len(everything)
     return {
+        "evaluated": evaluated,
+        "forward_per_s": len(everything) / t_forward,
+        "bound_s": bound,
+        "to_bound": t_batched / bound,
         "candidates": len(everything),
         "per_size": {k: len(v) for k, v in edits.items()},
         "batched_s": t_batched,

@@ -291,7 +291,8 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
         lines += [
             "",
             f"Base policy before finetuning: {before:.2f} on the shift ({before_all:.2f} over "
-            f"all of R'; after finetuning, mean over budgets: {overall}). "
+            "fresh tasks from all the user wants, training looks included; after finetuning, "
+            f"mean over budgets: {overall}). "
             f"Ordering: {ordering(table, world, shift, budgets)}.",
         ]
         test = cf_beats_baseline(rows, world, shift)

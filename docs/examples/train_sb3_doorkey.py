@@ -21,17 +21,18 @@ then diagnoses it (the committed copies are the ones the tests use).
 
 from __future__ import annotations
 
-import argparse
 import io
 import json
 import time
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import gymnasium as gym
 import minigrid  # noqa: F401 (registers the MiniGrid ids)
 import numpy as np
 import torch
+import tyro
 from minigrid.wrappers import ImgObsWrapper, RGBImgObsWrapper
 from stable_baselines3 import PPO
 from stable_baselines3.common.env_util import make_vec_env
@@ -67,11 +68,18 @@ def strip_optimizer(path: Path) -> None:
             z.writestr(name, data)
 
 
+@dataclass(frozen=True)
+class Args:
+    """Train the PPO agent of the "Bring your own policy" walkthrough, and export it to ONNX."""
+
+    steps: int = 300_000
+    """Environment steps PPO trains for."""
+    out: Path = Path(__file__).parent
+    """Folder for the .zip, the .onnx and the .json."""
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--steps", type=int, default=300_000)
-    ap.add_argument("--out", type=Path, default=Path(__file__).parent)
-    args = ap.parse_args()
+    args = tyro.cli(Args)
     torch.manual_seed(0)
     envs = make_vec_env(wrapped, n_envs=8, seed=0)
     model = PPO("CnnPolicy", envs, seed=0, verbose=0, **SETTINGS)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -75,3 +76,10 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 def write_text(path: str | Path, text: str) -> Path:
     """Write UTF-8 `text` to `path` atomically."""
     return write_bytes(path, text.encode())
+
+
+def safe_name(text: str) -> str:
+    """`text` as a file name on any system: every run of characters other than letters, digits,
+    '.', '_' and '-' becomes one '_' (a world "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12" gives
+    "minigrid_MiniGrid-DoorKey-5x5-v0_tile_12")."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text)

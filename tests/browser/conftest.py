@@ -51,19 +51,22 @@ def shots(request) -> Path:
 
 @pytest.fixture
 def serve_app(tmp_path):
-    """Start the page in this process: serve_app(world=...) -> App; stopped at teardown."""
+    """Start the page in this process: serve_app(world, session, policy) -> App; stopped at
+    teardown. `policy`: a policy spec to diagnose instead of the world's base policy."""
     from dfa_viz.app import start
+    from dfa_viz.app.server import open_state
 
     apps = []
 
-    def make(world: str = "nav2d", session: Path | None = None):
-        app = start(
+    def make(world: str = "nav2d", session: Path | None = None, policy: str | None = None):
+        state = open_state(
             world=world,
-            port=free_port(),
             session=session or tmp_path / f"session-{len(apps)}",
             out=tmp_path / "recordings",
             adapt=QUICK,
+            policy=policy,
         )
+        app = start(port=free_port(), state=state)
         apps.append(app)
         return app
 

@@ -1,4 +1,5 @@
-"""The other worlds in the page: DoorKey by keyboard, the tabletop by pick and place clicks."""
+"""The other worlds in the page: DoorKey by keyboard, the tabletop by pick and place clicks, and
+a stock MiniGrid environment with a stable-baselines3 agent, by keyboard."""
 
 from __future__ import annotations
 
@@ -54,6 +55,55 @@ def test_doorkey_demonstration_by_keys(serve_app, ui, shots):
     assert [int(a) for a in demo.actions[:n]] == actions
     assert demo.scenes[: n + 1] == expert.scenes[: n + 1]
     assert app.state.record.demo_source == "keys"
+
+
+def test_minigrid_and_an_sb3_agent_by_keys(serve_app, ui, shots):
+    """The loop on parts no one here wrote: a recoloured key and door break the PPO agent of
+    docs/examples; the page's keys demonstrate, the counterfactual names both colours, TI
+    feedback finetunes the SB3 network and the result is scored on the shift."""
+    from pathlib import Path
+
+    from search import compared_steps
+
+    examples = Path(__file__).resolve().parents[2] / "docs" / "examples"
+    world_name = "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12"
+    app = serve_app(world_name, policy=f"sb3:{examples / 'doorkey5x5_ppo.zip'}")
+    page = ui.open(app.url)
+    page.get_by_role("combobox", name="shift").click()
+    expect(page.get_by_role("option", name="object_tr")).to_have_count(0)  # the world's own
+    page.get_by_role("option", name="object_ti").click()
+    page.get_by_role("button", name="Load task").click()
+    expect(page.get_by_text("object_ti · seed 0")).to_be_visible()
+    page.get_by_role("button", name="Failed").click()
+    expect(page.get_by_role("button", name="pick up")).to_be_visible()
+
+    run, world = app.state.record, app.state.snapshot().world
+    expert = world.demonstrate(run.task)
+    n = compared_steps(world, expert)
+    hotkeys = {k.action: k.hotkey for k in world.keys}
+    page.get_by_text("Show what you wanted").click()  # focus the page, not an input
+    for i, a in enumerate(int(a) for a in expert.actions[:n]):
+        page.keyboard.press(KEYS.get(a, hotkeys[a]))
+        if i + 1 < n:
+            expect(page.get_by_text(f"{i + 1} steps:")).to_be_visible()
+    expect(page.get_by_text("(episode over)")).to_be_visible()
+    page.get_by_role("button", name="Use my demonstration").click()
+    ui.wait_for_text(page, "Counterfactual found")
+    page.screenshot(path=shots / "0-diagnosis.png")
+    edit = app.state.record.edit
+    assert {(c.slot, c.concept) for c in edit.ordered} == {("door0", "colour"), ("key0", "colour")}
+
+    ti = page.get_by_role("button", name="Task-irrelevant (TI)")
+    for i in range(ti.count()):
+        ti.nth(i).click()
+    finetune = page.get_by_role("button", name="Augment & finetune")
+    expect(finetune).to_be_enabled()
+    finetune.click()
+    ui.wait_for_text(page, "fresh tasks with the shift", timeout_s=240)
+    page.screenshot(path=shots / "1-adapted.png")
+    before_pct, after_pct = ui.success(page)
+    assert app.state.record.adaptation.policy.source.startswith("sb3:")
+    assert after_pct > before_pct, (before_pct, after_pct)
 
 
 def _plane_box(page, grey=(128, 128, 128), tol=12):

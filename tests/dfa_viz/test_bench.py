@@ -23,3 +23,18 @@ def test_cost_rows_name_every_figure(nav_policy, tmp_path):
     assert values["nav2d: recording of one `dfa run`"] == "1.00 MiB"
     for value in values.values():
         assert re.fullmatch(r"[0-9.]+ ?(x|s|MiB)", value), value
+
+
+def test_a_minigrid_search_with_an_outside_policy_is_timed_against_naive_and_the_bound():
+    """The MiniGrid row of `dfa bench`: the stable-baselines3 agent of docs/examples; the
+    naive and lockstep searches must agree (bench_world asserts it), and the forward-pass
+    bound counts only the candidate-steps the search evaluated."""
+    from dfa_viz.bench.run import MINIGRID, OUTSIDE_POLICIES, run_bench  # noqa: F401
+    from dfa_viz.bench.search import bench_world
+
+    r = bench_world(MINIGRID, repeats=1, shift="distractor_ti", policy=OUTSIDE_POLICIES[MINIGRID])
+    assert r["candidates"] == sum(r["per_size"].values()) > 0
+    from sim import get_world
+
+    assert r["candidates"] <= r["evaluated"] <= r["candidates"] * get_world(MINIGRID).horizon
+    assert r["bound_s"] > 0 and r["to_bound"] == r["batched_s"] / r["bound_s"]
