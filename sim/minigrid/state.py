@@ -139,8 +139,12 @@ class Layouts:
     def lock(self):
         return self._lock
 
-    def read(self, env, objs, *, layout: int, won: float, done: float, latent=None) -> Scene:
-        """The scene the environment is in (`latent`: cells of slots absent from the grid)."""
+    def read(
+        self, env, objs, *, layout: int, won: float, done: float, latent=None, before=None
+    ) -> Scene:
+        """The scene the environment is in. A slot absent from the grid keeps its look and
+        place from `before` (the scene stepped from), or waits on its `latent` cell: never
+        from what an earlier scene left in the shared objects."""
         carried = -1
         objects = []
         for k, s in enumerate(self.space.slots):
@@ -155,8 +159,11 @@ class Layouts:
                 objects.append(
                     Obj(s.name, True, values, (float(i), float(j), float(door_state(inst))))
                 )
+            elif before is not None:
+                was = before.obj(s.name)
+                objects.append(Obj(s.name, False, was.values, was.pos))
             else:
-                cell = (latent or {}).get(s.name) or tuple(inst.cur_pos or (0, 0))
+                cell = latent[s.name]
                 objects.append(
                     Obj(
                         s.name,

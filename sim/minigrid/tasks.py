@@ -168,8 +168,9 @@ def _shifted(world, base: Scene, shift: str, rng, text: str):
 
 def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) -> list[Task]:
     """n tasks on fresh layouts with R' drawn as the task's (keeping the shift, when
-    `shifted`): the recoloured objects' colours, the distractor (placed off the expert's
-    path), the agent's start for `other`. Drawn from np.random.default_rng([seed, 3])."""
+    `shifted`: only layouts that have the recoloured object): the recoloured objects'
+    colours, the distractor (placed off the expert's path), the agent's start for `other`.
+    Drawn from np.random.default_rng([seed, 3])."""
     rng = np.random.default_rng([seed, 3])
     reward = carrying_shift(world.space, task) if shifted else task.reward
     out: list[Task] = []
@@ -178,6 +179,9 @@ def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) 
             break
         layout = TEST_LAYOUTS + int(rng.integers(TEST_LAYOUTS))
         base = world.layout_scene(layout)
+        if shifted and task.cause is not None and task.cause[1] != PRESENCE:
+            if not base.obj(task.cause[0]).present:  # a layout without the recoloured object
+                continue  # cannot carry its shift
         scene = base
         for slot, concept, values in reward.allowed:  # the looks: onto this layout's objects
             v = str(values[int(rng.integers(len(values)))])

@@ -142,7 +142,8 @@ class MiniGridWorld(Benchmark):
             _, reward, terminated, truncated, _ = env.step(action)
             won = float(scene.agent[6] or reward > 0)
             done = float(terminated or truncated)
-            return self.layouts.read(env, objs, layout=int(scene.agent[0]), won=won, done=done)
+            layout = int(scene.agent[0])
+            return self.layouts.read(env, objs, layout=layout, won=won, done=done, before=scene)
 
     def done(self, scene: Scene) -> bool:
         return scene.agent[7] > 0

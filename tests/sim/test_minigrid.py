@@ -1,0 +1,147 @@
+"""Stock MiniGrid environments made into worlds: the frames are the RGB wrappers' own, the
+dynamics the environment's own step, the concept space read from its grids, the shifts made
+from that space, and the breadth-first expert solves every task it is given."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import sim
+from sim.core import PRESENCE, UserError
+from sim.minigrid.world import MiniGridWorld
+
+ENVS = [
+    "MiniGrid-DoorKey-5x5-v0",
+    "MiniGrid-DoorKey-8x8-v0",
+    "MiniGrid-Unlock-v0",
+    "MiniGrid-LavaGapS5-v0",
+    "MiniGrid-Fetch-5x5-N2-v0",
+]
+NAMES = [f"minigrid:{e}" for e in ENVS] + [
+    "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12",
+    "minigrid:MiniGrid-DoorKey-5x5-v0:view=partial",
+]
+
+
+@pytest.fixture(scope="module", params=NAMES)
+def world(request):
+    return sim.get_world(request.param)
+
+
+def test_frames_are_what_the_rgb_wrappers_show_a_policy(world):
+    """RGBImgObsWrapper (or RGBImgPartialObsWrapper) on the environment reset with seed s shows
+    exactly the world's frame of training layout s."""
+    env = world.make_env()
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        assert obs.shape == world.obs_shape and obs.dtype == np.uint8
+        np.testing.assert_array_equal(world.render(world.train_task(seed).scene), obs)
+
+
+def test_stepping_is_the_environments_own_step(world):
+    """Random actions through the wrapped environment and through the world's step give the
+    same frames at every step, and the same reward."""
+    env = world.make_env()
+    rng = np.random.default_rng(0)
+    for seed in range(2):
+        obs, _ = env.reset(seed=seed)
+        scene = world.train_task(seed).scene
+        for t in range(40):
+            a = int(rng.integers(world.action_dim))
+            obs, reward, terminated, truncated, _ = env.step(a)
+            scene = world.step_batch([scene], np.array([a]))[0]
+            np.testing.assert_array_equal(world.render(scene), obs, err_msg=f"step {t}")
+            assert (scene.agent[6] > 0) == (reward > 0) or scene.agent[6] > 0
+            if terminated or truncated:
+                assert world.done(scene)
+                break
+
+
+def test_a_step_does_not_depend_on_what_was_stepped_before(world):
+    """The environment's objects are shared between scenes of a layout: stepping one scene
+    must not leak into the next (an absent object keeps the look and place of its scene)."""
+    fresh = MiniGridWorld(world.env_id, tile=world.tile, view=world.view)
+    step = MiniGridWorld.step_one.__wrapped__  # past the cache: really stepped
+    scenes = [world.test_task(shift, s).scene for shift in world.shifts for s in range(2)]
+    rng = np.random.default_rng(1)
+    for scene in scenes:  # churn: other scenes of other layouts, random actions
+        for _ in range(5):
+            scene = step(world, scene, int(rng.integers(world.action_dim)))
+    for scene in scenes:
+        for a in range(world.action_dim):
+            assert step(world, scene, a) == step(fresh, scene, a)
+
+
+def test_the_concept_space_is_read_from_the_grids():
+    world = sim.get_world("minigrid:MiniGrid-DoorKey-5x5-v0")
+    names = [s.name for s in world.space.slots]
+    assert {"key0", "door0", "goal0"} <= set(names) and world.distractor in names
+    key = world.space.slot("key0")
+    assert key.kind == "key" and set(key.concept("colour").values) == {
+        "red",
+        "green",
+        "blue",
+        "purple",
+        "yellow",
+        "grey",
+    }
+    assert world.space.slot(world.distractor).optional  # the extra ball can be added
+    lava = sim.get_world("minigrid:MiniGrid-LavaGapS5-v0").space
+    lava_slots = [s for s in lava.slots if s.kind == "lava"]
+    assert lava_slots and all(len(s.concept("colour").values) == 1 for s in lava_slots)
+    fetch = sim.get_world("minigrid:MiniGrid-Fetch-5x5-N2-v0").space
+    assert len([s for s in fetch.slots if s.kind in ("key", "ball")]) >= 2
+
+
+def test_the_expert_solves_training_and_shifted_tasks(world):
+    tasks = [world.train_task(s) for s in range(3)]
+    tasks += [world.test_task(shift, s) for shift in world.shifts for s in range(2)]
+    for task in tasks:
+        assert world.demonstrate(task).success, (task.shift, task.seed)
+
+
+def test_shifts_change_what_their_kind_says(world):
+    for seed in range(3):
+        obj = world.test_task("object_ti", seed)
+        base = world.layout_scene(int(obj.scene.agent[0]))
+        changed = [
+            (o.slot, o.value("colour"), b.value("colour"))
+            for o, b in zip(obj.scene.objects, base.objects, strict=True)
+            if o.present and o.values != b.values
+        ]
+        assert 1 <= len(changed) <= 2 and obj.cause[0] in {c[0] for c in changed}
+        assert obj.scene.agent == base.agent
+        dist = world.test_task("distractor_ti", seed)
+        assert dist.cause == (world.distractor, PRESENCE)
+        assert dist.scene.obj(world.distractor).present
+        other = world.test_task("other", seed)
+        start = world.layout_scene(int(other.scene.agent[0]))
+        assert other.scene.objects == start.objects and other.scene.agent[1:4] != start.agent[1:4]
+    with pytest.raises(UserError, match="makes no object_tr tasks"):
+        world.test_task("object_tr", 0)
+
+
+def test_fresh_tasks_carry_the_shift(world):
+    task = world.test_task("object_ti", 0)
+    slot = task.cause[0]
+    value = task.scene.obj(slot).value("colour")
+    for fresh in world.fresh_tasks(task, 5, seed=0, shifted=True):
+        assert fresh.scene.obj(slot).value("colour") == value
+
+
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("minigrid:MiniGrid-Nope-v0", "not a registered MiniGrid environment"),
+        ("minigrid:CartPole-v1", "not a registered MiniGrid environment"),
+        ("minigrid:MiniGrid-DoorKey-5x5-v0:tile=0", "unknown option 'tile=0'"),
+        ("minigrid:MiniGrid-DoorKey-5x5-v0:view=top", "unknown option 'view=top'"),
+    ],
+)
+def test_bad_minigrid_names_are_one_line(name, message):
+    with pytest.raises(UserError, match=message) as err:
+        sim.get_world(name)
+    assert "\n" not in str(err.value)
+    assert "CartPole-v1" in gymnasium.registry  # a real id, only not a MiniGrid one
