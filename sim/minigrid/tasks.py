@@ -179,9 +179,9 @@ def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) 
             break
         layout = TEST_LAYOUTS + int(rng.integers(TEST_LAYOUTS))
         base = world.layout_scene(layout)
-        if shifted and task.cause is not None and task.cause[1] != PRESENCE:
-            if not base.obj(task.cause[0]).present:  # a layout without the recoloured object
-                continue  # cannot carry its shift
+        recoloured = shifted and task.cause is not None and task.cause[1] != PRESENCE
+        if recoloured and not base.obj(task.cause[0]).present:
+            continue  # a layout without the recoloured object cannot carry its shift
         scene = base
         for slot, concept, values in reward.allowed:  # the looks: onto this layout's objects
             v = str(values[int(rng.integers(len(values)))])
