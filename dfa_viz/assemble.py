@@ -9,11 +9,13 @@ from tqdm import tqdm
 
 from dfa_viz.configs import RunArgs
 from dfa_viz.loop import RunRecord, run_loop
+from dfa_viz.overlay import failed_saliency
 from dfa_viz.recording import write_recording
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from policy.base import base_folder
 from policy.outside import load
+from policy.saliency import check_explainable, check_method
 from policy.train import BASE, training_tasks
 from search import SearchConfig
 from sim import get_world
@@ -97,9 +99,13 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         )
     if not 0.0 <= args.accuracy <= 1.0:
         raise UserError(f"accuracy is a probability in [0, 1], not {args.accuracy}")
+    if args.saliency is not None:
+        check_method(args.saliency)
     overrides = parse_labels(world, args.label)
     policy = load(args.policy, world) if args.policy is not None else base_policy(world)
     policy.fits(world)
+    if args.saliency is not None:
+        check_explainable(policy)
     if world.benchmark:
         task, _ = failing_test_task(world, policy, args.shift, args.seed)
         demo = load_demo(world, task, args.demo) if args.demo is not None else None
@@ -146,5 +152,8 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
             bar.close()
     path = args.out / files.safe_name(f"{world.name}-{args.shift}-seed{args.seed}.rrd")
     record = replace(record, recording=str(path))
-    write_recording(path, world, record)
+    layer = None
+    if args.saliency is not None:
+        layer = failed_saliency(world, policy, record, args.saliency)
+    write_recording(path, world, record, saliency=layer)
     return record

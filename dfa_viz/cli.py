@@ -1,6 +1,7 @@
 """The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
 
-    dfa run | train | worlds | bench | demo | serve | experiment q2
+    dfa run | train | worlds | bench | demo | serve | sweep | experiment q2 | experiment explain
+    dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
 one line and exits 2.
@@ -18,16 +19,30 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import tyro
 
 from dfa_viz.configs import (
+    AnalyseStudyArgs,
     BenchArgs,
     DemoArgs,
+    ExplainArgs,
+    NewStudyArgs,
     Q2Args,
     RunArgs,
     ServeArgs,
+    ServeStudyArgs,
+    SweepArgs,
     TrainArgs,
     WorldsArgs,
 )
 from sim.core import UserError
 
+Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experiment`)
+    Annotated[Q2Args, tyro.conf.subcommand("q2")],
+    Annotated[ExplainArgs, tyro.conf.subcommand("explain")],
+]
+Study = Union[  # noqa: UP007 (the study's subcommands, `dfa study new|serve|analyse`)
+    Annotated[NewStudyArgs, tyro.conf.subcommand("new")],
+    Annotated[ServeStudyArgs, tyro.conf.subcommand("serve")],
+    Annotated[AnalyseStudyArgs, tyro.conf.subcommand("analyse")],
+]
 Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[RunArgs, tyro.conf.subcommand("run")],
     Annotated[TrainArgs, tyro.conf.subcommand("train")],
@@ -35,7 +50,21 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[BenchArgs, tyro.conf.subcommand("bench")],
     Annotated[DemoArgs, tyro.conf.subcommand("demo")],
     Annotated[ServeArgs, tyro.conf.subcommand("serve")],
-    Annotated[Q2Args, tyro.conf.subcommand("experiment")],
+    Annotated[SweepArgs, tyro.conf.subcommand("sweep")],
+    Annotated[
+        Experiment,
+        tyro.conf.subcommand(
+            "experiment", description="Run one of the experiments: q2 (finetuning) or explain."
+        ),
+    ],
+    Annotated[
+        Study,
+        tyro.conf.subcommand(
+            "study",
+            description="The paper's user study: new (freeze the tasks), serve (the page for "
+            "participants), analyse (accuracy and tests).",
+        ),
+    ],
 ]
 
 
@@ -118,6 +147,39 @@ def experiment(args: Q2Args) -> None:
     experiment_q2(args)
 
 
+def explain(args: ExplainArgs) -> None:
+    from dfa_viz.experiment.cli import experiment_explain
+
+    experiment_explain(args)
+
+
+def sweep(args: SweepArgs) -> None:
+    from dfa_viz.sweep.run import run_sweep
+    from dfa_viz.sweep.tables import summary, tables
+
+    out = run_sweep(args)
+    from rich.console import Console
+
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=120)
+    for table in tables(out.result):
+        console.print(table)
+    console.print(summary(out.result, out.wall_s))
+    for path in (out.csv, out.heatmap, out.recording):
+        console.print(f"  {path}", highlight=False)
+
+
+def study(args) -> None:
+    from dfa_viz.study import cli as study_cli
+
+    {
+        NewStudyArgs: study_cli.study_new,
+        ServeStudyArgs: study_cli.study_serve,
+        AnalyseStudyArgs: study_cli.study_analyse,
+    }[type(args)](args)
+
+
 HANDLERS = {
     RunArgs: run,
     TrainArgs: train,
@@ -126,6 +188,11 @@ HANDLERS = {
     DemoArgs: demo,
     ServeArgs: serve,
     Q2Args: experiment,
+    ExplainArgs: explain,
+    SweepArgs: sweep,
+    NewStudyArgs: study,
+    ServeStudyArgs: study,
+    AnalyseStudyArgs: study,
 }
 
 

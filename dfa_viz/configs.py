@@ -11,6 +11,9 @@ from typing import Annotated, Literal
 
 import tyro
 
+from dfa_viz.experiment.explain import EXPLAINERS
+from dfa_viz.experiment.explain import SHIFTS as EXPLAIN_SHIFTS
+from dfa_viz.experiment.explain import WORLDS as EXPLAIN_WORLDS
 from sim.core import UserError
 
 
@@ -29,9 +32,11 @@ class Finetuning:
     demonstrations, so that fitting the new ones does not erase what it did elsewhere."""
     sources: Literal["all", "user"] = "all"
     """What variants are made from: "all" (the base policy's training demonstrations and the
-    user's, edited as R' allows) or "user" (the user's demonstration only, as in the paper)."""
+    user's, edited to values the user accepts) or "user" (the user's demonstration only, as in
+    the paper)."""
     n_eval: int = 10
-    """Fresh tasks each policy is scored on, on the shift and over all of R' (the paper's 10)."""
+    """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
+    paper's 10)."""
 
     def check(self) -> Finetuning:
         """Raise a UserError for a setting out of range; returns self."""
@@ -104,8 +109,8 @@ class RunArgs:
     """Print the report as one JSON object."""
     accuracy: float = 1.0
     """Probability that each simulated feedback label is right."""
-    label: tuple[str, ...] = ()
-    """Fixed answers, e.g. goal.colour=TR or distractor.presence=TI."""
+    label: tyro.conf.UseAppendAction[tuple[str, ...]] = ()
+    """Fixed answers, e.g. goal.colour=TR or distractor.presence=TI; repeat --label for more."""
     policy: str | None = None
     """The policy to diagnose instead of the base policy: a checkpoint folder
     (model.safetensors + config.json), onnx:PATH.onnx, torch:MODULE:CALLABLE@WEIGHTS or
@@ -115,6 +120,10 @@ class RunArgs:
     without test tasks, the demonstration's first scene is the task."""
     max_size: int = 2
     """The largest edit the search tries (concept changes)."""
+    saliency: str | None = None
+    """Also record where the failed rollout's frames push the policy off the demonstration:
+    a heat layer `rollouts/failed/saliency` over its frames, by captum's grad_cam (cheap),
+    integrated_gradients, occlusion or kernel_shap (the project's own image policies only)."""
     out: Path = Path("recordings")
     """Folder for the recording."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
@@ -217,6 +226,52 @@ class DemoArgs:
     """How "Augment & finetune" adapts (the finetuning experiment's defaults)."""
 
 
+@dataclass(frozen=True)
+class SweepArgs:
+    """Find what breaks a policy before a user meets it: every single concept edit on many tasks.
+
+    On TASKS tasks of the training distribution (seeds SEED, SEED + 1, ...), every value of
+    every concept of every slot, and every object added or removed, is rolled out in lockstep
+    beside the unedited task; an added object also where the world says it is in the way (a
+    DoorKey lava on the path). Each edit's failure rate at what the task asks for (counted
+    where the expert can still do it) and its mean action deviation from the unedited
+    rollout, with 95% intervals; edits and concepts ranked, most damaging first. With
+    --sizes 1 2, pairs of the edits that move the policy most, and those that fail more often
+    than both alone.
+
+    Writes OUT/sweep.csv, OUT/heatmap.png (failure rate, slot.concept x value) and
+    OUT/sweep.rrd (the heatmap, a bar chart per concept, the worst edited rollouts beside the
+    unedited ones), and prints the ranking. The same tasks give the same files on every
+    backend. `dfa serve` has the same sweep in its Sweep tab, a click loading a failure.
+    """
+
+    world: str = "nav2d"
+    """A registered world (`dfa worlds` lists them)."""
+    policy: str | None = None
+    """The policy to sweep instead of the base policy (a checkpoint folder, onnx:, torch:,
+    sb3:, as for `dfa run`)."""
+    tasks: int = 100
+    """How many tasks (the same scene is rolled out once however often it comes)."""
+    seed: int = 0
+    """The first task's seed."""
+    sizes: tuple[int, ...] = (1,)
+    """Edit sizes: 1 (single edits), 1 2 (and pairs)."""
+    workers: int = 1
+    """Units of work side by side (1: in this process; more: a process pool or Ray CPUs)."""
+    backend: Literal["local", "ray"] = "local"
+    """local (processes on this machine) or ray (pip install 'dfa[ray]')."""
+    out: Path | None = None
+    """The folder for the files; when left out, recordings/sweep/<world>."""
+    worst: int = 4
+    """Edited rollouts shown in the recording, beside their unedited ones."""
+    pair_cells: int = 32
+    """With pairs: the edits paired, those that move the policy most."""
+    ray_address: str | None = None
+    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
+    progress: bool = True
+    """Show a progress bar."""
+
+
 Condition = Literal["nh_random", "baseline_h", "cf_h", "oracle"]
 
 
@@ -242,8 +297,6 @@ class Q2Args:
     resumes where it stopped. The same seeds give the same runs.csv whichever backend ran them.
     """
 
-    which: tyro.conf.Positional[Literal["q2"]]
-    """The experiment: q2, the finetuning comparison."""
     worlds: Annotated[
         tuple[Literal["nav2d", "doorkey", "tabletop"], ...], tyro.conf.arg(aliases=("--world",))
     ] = ("nav2d", "doorkey", "tabletop")
@@ -270,3 +323,86 @@ class Q2Args:
     """Show a progress bar."""
     finetuning: Annotated[Finetuning, tyro.conf.OmitArgPrefixes] = field(default_factory=Finetuning)
     """How every run finetunes and scores (its budget is one of --budgets)."""
+
+
+@dataclass(frozen=True)
+class ExplainArgs:
+    """Measure how well each explanation names the planted cause of a failure.
+
+    For every world, shift and seed, the first test task of that seed the base policy fails,
+    its failed rollout and the expert's demonstration. Each explainer ranks the concepts the
+    test scene shows: the counterfactual search (the concepts its best edit changes first);
+    captum's Integrated Gradients, Occlusion, Grad-CAM and KernelSHAP over the failed
+    rollout's frames against the demonstrated actions, reduced to the attribution inside each
+    object's pixels; a random order as the floor. A hit is the planted cause ranked first
+    (top-1) or among the first three (top-3).
+
+    Writes OUT/tasks.csv (every task and explainer), OUT/timings.csv, OUT/table.md (hit rates
+    with 95% Wilson intervals beside the paper's user accuracies, and time per task) and
+    OUT/hits.png. Tasks already in OUT/tasks.csv are skipped, so an interrupted benchmark
+    resumes where it stopped; the same seeds give the same tasks.csv on either backend.
+    """
+
+    worlds: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--world",))] = EXPLAIN_WORLDS
+    """Which worlds (any that makes test tasks: `dfa worlds` says which)."""
+    shifts: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--shift",))] = EXPLAIN_SHIFTS
+    """Which shifts (those with a planted cause: object_ti, object_tr, distractor_ti, ...)."""
+    tasks: int = 50
+    """Tasks per world and shift: seeds 0 .. TASKS-1."""
+    methods: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--method",))] = EXPLAINERS
+    """Which explainers (counterfactual, integrated_gradients, occlusion, grad_cam, ...)."""
+    workers: int = 2
+    """Tasks explained side by side (processes locally, CPUs of a local Ray instance)."""
+    backend: Literal["local", "ray"] = "local"
+    """local (a process pool on this machine) or ray (pip install 'dfa[ray]')."""
+    out: Path = Path("recordings/experiments/explain")
+    """The results folder."""
+    max_size: int = 2
+    """Largest edit the counterfactual search tries."""
+    ray_address: str | None = None
+    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
+    progress: bool = True
+    """Show a progress bar."""
+
+
+@dataclass(frozen=True)
+class NewStudyArgs:
+    """Make a user study's tasks once and freeze them in a folder (the paper's user study).
+
+    The protocol (a TOML file) names the tasks per world and shift kind (the paper's: one per
+    kind in nav2d and DoorKey, two in the tabletop, TI and TR half and half), the conditions
+    (none, counterfactual, saliency, both), the design (between or within subjects) and a seed.
+    Every task (the failed rollout, the demonstration, the counterfactual, the saliency maps)
+    is computed here, so every participant sees the same ones. Then `dfa study serve OUT`.
+    """
+
+    out: Path
+    """The new study folder."""
+    protocol: Path | None = None
+    """study.toml (see README "Running a user study"); left out: the paper's protocol with
+    conditions none and counterfactual, within subjects, seed 0."""
+
+
+@dataclass(frozen=True)
+class ServeStudyArgs:
+    """Serve a frozen study to participants: each tab enters an anonymous code, goes through
+    the familiarisation and answers every question; answers are on disk before the page moves
+    on, and a code entered again resumes at its first unanswered question."""
+
+    folder: tyro.conf.Positional[Path]
+    """The study folder (`dfa study new`)."""
+    port: Annotated[int | None, tyro.conf.arg(metavar="INT")] = None
+    """When left out, 8080 or the next free one; a port given must be free (0: any)."""
+    host: str = "127.0.0.1"
+    """The interface to bind; 0.0.0.0 exposes the page to the network."""
+
+
+@dataclass(frozen=True)
+class AnalyseStudyArgs:
+    """Score a study's answers by the paper's rule and compare the conditions: accuracy per
+    world, shift kind and condition with standard errors beside the paper's, chi-squared (1)
+    between conditions per world, Wilcoxon signed-rank between TR and TI answers. Writes
+    FOLDER/analysis/answers.csv, accuracy.md, accuracy.png and answers.rrd."""
+
+    folder: tyro.conf.Positional[Path]
+    """The study folder."""

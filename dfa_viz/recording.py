@@ -11,15 +11,20 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from dfa_viz import charts
+from dfa_viz.charts import rgb
 from dfa_viz.loop import Evaluation, RunRecord
-from search import Candidate, SearchResult
-from sim.core import Edit, Feedback, Task, Trajectory, World, files
+from dfa_viz.overlay import SaliencyLayer, heat_rgba
+from search import Candidate, SearchResult, distance_to_demo
+from sim.core import Edit, Feedback, Trajectory, World, files
 
 APP_ID = "dfa"
 ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
 JPEG_QUALITY = 90
 DETAIL_LIMIT = 300  # searches up to this size get one entity per candidate
 DETAIL_BEST = 50  # larger ones: every candidate as a row, traces for the valid and best few
+AUGMENTED_SHOWN = 8  # variants given a view of their own (all are recorded)
+SALIENCY_ORDER = 10.0  # draw order of the saliency layer: above the frame (images default -10)
 
 
 def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
@@ -98,39 +103,160 @@ def send_blueprint(rec: rr.RecordingStream, bp: rrb.Blueprint) -> None:
         stream.disconnect()
 
 
-def blueprint(world: World) -> rrb.Blueprint:
-    """Failed | demonstration | counterfactual | finetuned on one `step` timeline; the
-    action-distance plot beneath; edit, feedback, loss and success at the bottom. Worlds with
-    a 3D scene add their 3D views beside the camera images."""
-    views: list = [rrb.Spatial2DView(origin=f"rollouts/{name}", name=name) for name in ROLLOUTS]
+def _mark(traj: Trajectory | None) -> str:
+    return "" if traj is None else (" ✓" if traj.success else " ✗")
+
+
+def rollout_titles(record: RunRecord) -> dict[str, str]:
+    """Each rollout's view title, with ✓ or ✗ for whether it did what the user wants."""
+    d, ad = record.diagnosis, record.adaptation
+    cf = d.counterfactual if d is not None else None
+    return {
+        "failed": f"the policy{_mark(record.rollout)}",
+        "demonstration": f"your demonstration{_mark(record.demo)}",
+        "counterfactual": f"the policy after the edit{_mark(cf)}",
+        "finetuned": f"finetuned{_mark(ad.rollout if ad else None)}",
+    }
+
+
+def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -> rrb.Blueprint:
+    """What a reviewer sees first: the four rollouts side by side on one `step` timeline
+    (paused at step 0), the action distance and the actions beneath, then the task, what
+    changed, the feedback, the variants finetuned on, the loss and the success. saliency: the
+    method whose layer lies over the failed rollout's frames (named in its title)."""
+    titles = rollout_titles(record)
+    if saliency is not None:
+        from policy.saliency import METHOD_NAMES
+
+        titles["failed"] += f" · {METHOD_NAMES.get(saliency, saliency)}"
+    views: list = [
+        rrb.Spatial2DView(origin=f"rollouts/{name}", name=titles[name]) for name in ROLLOUTS
+    ]
     if world.view3d is not None:
         from dfa_viz import scene3d
 
         views += scene3d.views()
+    one_step = world.horizon == 1
+    if one_step:  # one point per rollout: bars, not curves
+        plots: list = [
+            rrb.Spatial2DView(origin="charts/distance", name="distance to the demonstration"),
+            rrb.Spatial2DView(origin="charts/candidates", name="every edit the search tried"),
+        ]
+    else:
+        plots = [
+            rrb.TimeSeriesView(
+                origin="action_distance",
+                name="action distance to the demonstration",
+                plot_legend=rrb.PlotLegend("RightTop"),
+                axis_y=rrb.ScalarAxis(range=(0.0, _distance_top(world, record))),
+            ),
+            rrb.TimeSeriesView(
+                origin="search",
+                contents=["search/candidates/**", "search/epsilon"],
+                name="every edit the search tried (green: follows the demonstration, red: not)",
+                plot_legend=rrb.PlotLegend(visible=False),
+            ),
+            rrb.Tabs(
+                *(
+                    rrb.TimeSeriesView(
+                        origin="/",
+                        contents=[f"rollouts/{name}/action/{k}" for name in ROLLOUTS],
+                        name=f"action: {label}",
+                    )
+                    for k, label in enumerate(action_labels(world))
+                ),
+                name="actions",
+            ),
+        ]
+    n_aug = len(record.adaptation.augmented) if record.adaptation else 0
+    bottom: list = [
+        rrb.TextDocumentView(origin="task", name="the task"),
+        rrb.TextDocumentView(origin="edit", name="what changed"),
+        rrb.TextDocumentView(origin="feedback", name="your feedback"),
+    ]
+    if n_aug:
+        bottom.append(
+            rrb.Grid(
+                *(
+                    rrb.Spatial2DView(origin=f"augmented/a{i:03d}", name=f"variant {i + 1}")
+                    for i in range(min(n_aug, AUGMENTED_SHOWN))
+                ),
+                name=f"variants finetuned on ({n_aug})",
+            )
+        )
+    bottom += [
+        rrb.Spatial2DView(origin="charts/loss", name="finetuning loss"),
+        rrb.Spatial2DView(origin="charts/success", name="success before → after"),
+    ]
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.Horizontal(*views),
-            rrb.Horizontal(
-                rrb.TimeSeriesView(origin="action_distance", name="action distance to the demo"),
-                rrb.TimeSeriesView(origin="search/candidates", name="every candidate tried"),
-            ),
-            rrb.Horizontal(
-                rrb.TextDocumentView(origin="edit", name="counterfactual edit"),
-                rrb.TextDocumentView(origin="feedback", name="feedback"),
-                rrb.TimeSeriesView(origin="finetune", name="finetuning loss"),
-                rrb.BarChartView(origin="evaluation", name="success before / after"),
-            ),
+            rrb.Horizontal(*plots),
+            rrb.Horizontal(*bottom),
             row_shares=[3, 2, 2],
         ),
+        rrb.TimePanel(timeline="step", play_state="paused", state="collapsed"),
         collapse_panels=True,
     )
 
 
-def edit_table(world: World, scene, edit: Edit) -> str:
+def action_labels(world: World) -> tuple[str, ...]:
+    """A name per action dimension: the world's own, else "action k" (discrete: "action")."""
+    if world.discrete:
+        return ("action (index)",)
+    return world.action_names or tuple(f"action {k}" for k in range(world.action_dim))
+
+
+def _distance_top(world: World, record: RunRecord) -> float:
+    """The top of the distance plot: every rollout's largest distance, and epsilon."""
+    top = world.epsilon if not world.discrete else 1.0
+    if record.demo is None:
+        return max(top, 1.0)
+    trajs = [record.rollout, record.diagnosis.counterfactual if record.diagnosis else None]
+    trajs.append(record.adaptation.rollout if record.adaptation else None)
+    for traj in trajs:
+        if traj is not None:
+            top = max(top, float(np.nanmax(distance_to_demo(world, traj, record.demo), initial=0)))
+    return round(1.1 * top, 3) or 1.0
+
+
+def edit_table(edit: Edit) -> str:
     """Markdown before -> after table of an edit's concepts."""
-    rows = ["| slot | concept | before | after |", "|---|---|---|---|"]
-    rows += [f"| {c.slot} | {c.concept} | {c.old} | {c.new} |" for c in edit.ordered]
+    rows = ["| object | concept | before | after |", "|---|---|---|---|"]
+    rows += [f"| {c.slot} | {c.concept} | {c.old} | **{c.new}** |" for c in edit.ordered]
     return "\n".join(rows)
+
+
+def task_text(record: RunRecord) -> str:
+    """The task as a reviewer reads it: world, shift, seeds, instruction, outcome."""
+    t = record.task
+    lines = [
+        f"## {record.world} · {record.shift} · seed {record.seed}",
+        f"**What the user wants:** {t.reward.instruction}",
+        f"(test task {t.seed} of seed {record.seed}: the first task of the seed that the base "
+        "policy fails)",
+        "",
+        f"- the policy: {'did it ✓' if record.rollout.success else 'failed ✗'}",
+    ]
+    if record.demo is not None:
+        lines.append(f"- demonstration: {record.demo_source or 'given'}")
+    d = record.diagnosis
+    if d is not None:
+        found = d.edit is not None
+        lines.append(
+            f"- counterfactual: {d.edit}"
+            if found
+            else "- no counterfactual: the cause is outside the concept space"
+        )
+    ev = record.evaluation
+    if ev is not None:
+        n = len(ev.before.shifted)
+        lines.append(
+            f"- success on {n} fresh tasks with the shift: {ev.before.on_shift:.0%} → "
+            f"{ev.after.on_shift:.0%}; on {len(ev.before.overall)} from all the user wants: "
+            f"{ev.before.on_all:.0%} → {ev.after.on_all:.0%}"
+        )
+    return "\n".join(lines)
 
 
 class Recorder:
@@ -140,20 +266,34 @@ class Recorder:
     the loop's order and moves the file into place once it is whole.
     """
 
-    def __init__(self, path: str | Path, world: World, task: Task) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        world: World,
+        record: RunRecord,
+        *,
+        saliency: SaliencyLayer | None = None,
+    ) -> None:
         self.path = Path(path)
-        self.world, self.task = world, task
+        self.world, self.task = world, record.task
+        task = record.task
         self.file = RrdFile(self.path, recording_id(world.name, task.shift, task.seed))
         self.rec = self.file.rec
-        send_blueprint(self.rec, blueprint(world))
+        self.rec.send_recording_name(f"{record.world} · {record.shift} · seed {record.seed}")
+        method = saliency.method if saliency is not None else None
+        send_blueprint(self.rec, blueprint(world, record, saliency=method))
         self.rec.send_property(
             "task",
             rr.AnyValues(
                 world=world.name,
                 shift=task.shift,
-                seed=task.seed,
+                seed=record.seed,
+                task_seed=task.seed,
                 instruction=task.reward.instruction,
             ),
+        )
+        self.rec.log(
+            "task", rr.TextDocument(task_text(record), media_type="text/markdown"), static=True
         )
         self._demo: Trajectory | None = None
 
@@ -171,12 +311,14 @@ class Recorder:
                 columns=rr.Scalars.columns(scalars=values[keep].astype(np.float64)),
             )
 
-    def _distance_to_demo(self, traj: Trajectory) -> np.ndarray:
-        assert self._demo is not None
-        a, b = traj.actions, self._demo.actions
-        if self.world.discrete:
-            return (a != b).astype(np.float64)
-        return np.abs(a - b).sum(axis=1).astype(np.float64)  # (T,)
+    def _chart(self, name: str, image: np.ndarray) -> None:
+        self.rec.log(f"charts/{name}", rr.Image(image), static=True)
+
+    def _pixel(self, x: float, y: float) -> tuple[float, float]:
+        """A point in the world's coordinates on its rendered frame, in pixels."""
+        x0, x1, y0, y1 = self.world.image_extent  # type: ignore[misc]
+        h, w = self.world.obs_shape[:2]
+        return (x - x0) / (x1 - x0) * w, (y1 - y) / (y1 - y0) * h
 
     # -- the parts of a run -------------------------------------------------------------------
     def rollout(self, name: str, traj: Trajectory) -> None:
@@ -186,10 +328,17 @@ class Recorder:
         for t, frame in enumerate(traj.observations):
             self.rec.set_time("step", sequence=t)
             self.rec.log(f"rollouts/{name}/frame", self._image(frame))
+        if self.world.demo_input == "pick_place":  # the pick and place points on the frame
+            self._pick_place(name, traj)
         actions = traj.actions.reshape(traj.horizon, -1).astype(np.float64)  # (T, A)
         steps = np.arange(traj.horizon)
+        labels = action_labels(self.world)
         for k in range(actions.shape[1]):
-            self._series(f"rollouts/{name}/action/{k}", steps, actions[:, k])
+            entity = f"rollouts/{name}/action/{k}"
+            self._series(entity, steps, actions[:, k])
+            label = labels[min(k, len(labels) - 1)]
+            series = rr.SeriesLines(names=f"{name}: {label}", colors=rgb(name))
+            self.rec.log(entity, series, static=True)
         self.rec.log(f"rollouts/{name}/success", rr.AnyValues(success=traj.success), static=True)
         if self.world.view3d is not None:
             from dfa_viz import scene3d
@@ -198,19 +347,87 @@ class Recorder:
         if name == "demonstration":
             self._demo = traj
         elif self._demo is not None and name in ("failed", "counterfactual", "finetuned"):
-            self._series(f"action_distance/{name}", steps, self._distance_to_demo(traj))
+            entity = f"action_distance/{name}"
+            self._series(entity, steps, distance_to_demo(self.world, traj, self._demo))
+            self.rec.log(entity, rr.SeriesLines(names=name, colors=rgb(name)), static=True)
         if name == "demonstration" and not self.world.discrete:
             eps = np.full(traj.horizon, self.world.epsilon)
-            self._series("action_distance/epsilon", steps, eps)
-            self.rec.log(
-                "action_distance/epsilon",
-                rr.SeriesLines(names="epsilon", colors=[128, 128, 128]),
-                static=True,
-            )
+            for entity in ("action_distance/epsilon", "search/epsilon"):
+                self._series(entity, steps, eps)
+                self.rec.log(
+                    entity,
+                    rr.SeriesLines(names="ε (the search's bound)", colors=rgb("epsilon")),
+                    static=True,
+                )
+
+    def _pick_place(self, name: str, traj: Trajectory) -> None:
+        """The pick point, the place point and an arrow between them, over the first frame."""
+        a = np.asarray(traj.actions, np.float64).reshape(-1)[:4]
+        (u0, v0), (u1, v1) = self._pixel(a[0], a[1]), self._pixel(a[2], a[3])
+        colour = rgb(name)
+        self.rec.set_time("step", sequence=0)
+        self.rec.log(
+            f"rollouts/{name}/action",
+            rr.Arrows2D(
+                origins=[(u0, v0)],
+                vectors=[(u1 - u0, v1 - v0)],
+                colors=[[255, 255, 255]],
+                radii=0.6,
+            ),
+        )
+        self.rec.log(
+            f"rollouts/{name}/points",
+            rr.Points2D([(u0, v0), (u1, v1)], colors=[colour, [255, 255, 255]], radii=1.5),
+        )
+        self.rec.reset_time()
+
+    def saliency(self, layer: SaliencyLayer) -> None:
+        """The failed rollout's saliency maps as a heat-coloured RGBA image over its frames
+        (`rollouts/failed/saliency`, on `step`, drawn above the frame), cleared at the first
+        step without a map; the method in the recording's properties."""
+        from policy.saliency import METHOD_NAMES
+
+        self.rec.send_property(
+            "saliency",
+            rr.AnyValues(
+                method=layer.method,
+                name=METHOD_NAMES.get(layer.method, layer.method),
+                explains="-|pi(s) - a_demo| (continuous) or the demonstrated action's logit",
+            ),
+        )
+        entity = "rollouts/failed/saliency"
+        for t, rgba in enumerate(heat_rgba(layer.maps)):  # (H, W, 4) uint8
+            self.rec.set_time("step", sequence=t)
+            self.rec.log(entity, rr.Image(rgba, color_model="RGBA", draw_order=SALIENCY_ORDER))
+        self.rec.set_time("step", sequence=len(layer.maps))
+        self.rec.log(entity, rr.Clear(recursive=False))
+        self.rec.reset_time()
+
+    def distances(self, record: RunRecord) -> None:
+        """One-step worlds: each rollout's distance to the demonstration as a bar."""
+        if self.world.horizon != 1 or record.demo is None:
+            return
+        bars = {"failed": record.rollout}
+        if record.diagnosis is not None and record.diagnosis.counterfactual is not None:
+            bars["counterfactual"] = record.diagnosis.counterfactual
+        if record.adaptation is not None:
+            bars["finetuned"] = record.adaptation.rollout
+        values = {
+            k: float(np.nansum(distance_to_demo(self.world, v, record.demo)))
+            for k, v in bars.items()
+        }
+        self._chart("distance", charts.distance_bars(values, self.world.epsilon))
 
     def candidates(self, cands: Sequence[Candidate]) -> None:
         """Every candidate the search tried (the size of the search decides how)."""
         self.rec.reset_time()
+        if self.world.horizon == 1 and cands:
+            self._chart(
+                "candidates",
+                charts.candidates_chart(
+                    [c.total for c in cands], [c.valid for c in cands], self.world.epsilon
+                ),
+            )
         if len(cands) <= DETAIL_LIMIT:
             for i, cand in enumerate(cands):
                 self._log_candidate(i, cand)
@@ -265,12 +482,15 @@ class Recorder:
                 "edit/delta", rr.TextDocument(text, media_type="text/markdown"), static=True
             )
             return
-        lines = [edit_table(self.world, self.task.scene, result.best.edit)]
+        lines = [
+            "The smallest change to the scene after which the policy does what the "
+            f"demonstration does ({len(result.tried)} edits tried):",
+            "",
+            edit_table(result.best.edit),
+        ]
         if len(result.counterfactuals) > 1:
-            lines.append(
-                "\nOther minimal edits (ties): "
-                + "; ".join(str(c.edit) for c in result.counterfactuals[1:])
-            )
+            lines += ["", "Other changes as small that work too:"]
+            lines += [f"- {c.edit}" for c in result.counterfactuals[1:]]
         self.rec.log(
             "edit/delta", rr.TextDocument("\n".join(lines), media_type="text/markdown"), static=True
         )
@@ -281,10 +501,14 @@ class Recorder:
         self.rec.log("edit/phi_after", rr.BarChart(after), static=True)
 
     def feedback(self, feedback: Feedback) -> None:
-        rows = ["| slot | concept | label | acceptable |", "|---|---|---|---|"]
+        space = self.world.space
+        rows = ["| concept | answer | acceptable |", "|---|---|---|"]
         for lab in feedback.labels:
-            kind = "TR" if lab.relevant else "TI"
-            rows.append(f"| {lab.slot} | {lab.concept} | {kind} | {', '.join(lab.acceptable)} |")
+            if lab.relevant:
+                rows.append(f"| {lab.slot}.{lab.concept} | task-relevant (TR) | |")
+            else:
+                fine = space.describe(lab.slot, lab.concept, lab.acceptable)
+                rows.append(f"| {lab.slot}.{lab.concept} | task-irrelevant (TI) | {fine} |")
         self.rec.log(
             "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
         )
@@ -295,14 +519,20 @@ class Recorder:
             for t, frame in enumerate(traj.observations):
                 self.rec.set_time("step", sequence=t)
                 self.rec.log(f"augmented/a{i:03d}/frame", self._image(frame))
+        self.rec.reset_time()
 
     def losses(self, losses: Sequence[float]) -> None:
+        """The loss per finetuning step: as a chart (seen on every timeline) and as values on
+        the `finetune_step` timeline."""
         self.rec.reset_time()
+        if not losses:
+            return
         self.rec.send_columns(
             "finetune/loss",
             indexes=[rr.TimeColumn("finetune_step", sequence=np.arange(len(losses)))],
             columns=rr.Scalars.columns(scalars=np.asarray(losses, np.float64)),
         )
+        self._chart("loss", charts.loss_chart(losses))
 
     def evaluation(self, ev: Evaluation) -> None:
         self.rec.reset_time()
@@ -318,6 +548,14 @@ class Recorder:
             ),
             static=True,
         )
+        self._chart(
+            "success",
+            charts.success_chart(
+                (ev.before.on_shift, ev.before.on_all),
+                (ev.after.on_shift, ev.after.on_all),
+                len(ev.before.shifted),
+            ),
+        )
 
     def close(self, *, keep: bool = True) -> None:
         """Finish the file and move it into place; `keep=False` (a run that failed) discards
@@ -331,13 +569,18 @@ class Recorder:
         self.close(keep=kind is None)
 
 
-def write_recording(path: str | Path, world: World, record: RunRecord) -> Path:
+def write_recording(
+    path: str | Path, world: World, record: RunRecord, *, saliency: SaliencyLayer | None = None
+) -> Path:
     """Write everything a run record holds to one .rrd, in the loop's order; the file at `path`
-    is replaced only once the new one is whole."""
-    with Recorder(path, world, record.task) as rec:
+    is replaced only once the new one is whole. saliency: a layer over the failed rollout's
+    frames (dfa_viz.overlay.failed_saliency)."""
+    with Recorder(path, world, record, saliency=saliency) as rec:
         if record.demo is not None:
             rec.rollout("demonstration", record.demo)
         rec.rollout("failed", record.rollout)
+        if saliency is not None:
+            rec.saliency(saliency)
         d = record.diagnosis
         if d is not None:
             rec.candidates(d.result.tried)
@@ -350,6 +593,7 @@ def write_recording(path: str | Path, world: World, record: RunRecord) -> Path:
             rec.augmented(ad.augmented)
             rec.losses(ad.losses)
             rec.rollout("finetuned", ad.rollout)
+        rec.distances(record)
         if record.evaluation is not None:
             rec.evaluation(record.evaluation)
     return Path(path)

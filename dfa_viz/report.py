@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dfa_viz.loop import RunRecord
+from sim import get_world
 
 
 def format_report(r: RunRecord) -> str:
@@ -25,8 +26,10 @@ def format_report(r: RunRecord) -> str:
         lines.append(f"  counterfactual (size {s.size}, {len(s.tried)} edits tried): {best.edit}")
         for c in ties:
             lines.append(f"    also minimal: {c.edit}")
+    space = get_world(r.world).space
     for lab in r.feedback.labels:
-        kind = "TR" if lab.relevant else f"TI (acceptable: {', '.join(lab.acceptable)})"
+        fine = space.describe(lab.slot, lab.concept, lab.acceptable)
+        kind = "TR" if lab.relevant else f"TI (acceptable: {fine})"
         lines.append(f"  feedback: {lab.slot}.{lab.concept} is {kind}")
     ad, ev = r.adaptation, r.evaluation
     if ad is None and r.feedback.labels:

@@ -9,6 +9,8 @@ Layout under `scene3d/<rollout>/` (rollout: failed, demonstration, counterfactua
                     rollout, on the `sim_time` timeline (seconds of simulated time) the carry
                     and the settling of each pick-and-place, one row per 20 ms
     action          Arrows3D from the pick point to the place point, on the `step` timeline
+    trail/<slot>    LineStrips3D: the path of each object a pick-and-place moved, from the
+                    step after it on (the carry, seen without leaving the `step` timeline)
 
 The meshes, looks and poses come from the world's View3D (the tabletop's: the same geometry
 MuJoCo simulates and renders; the web page reuses it too).
@@ -29,11 +31,21 @@ ROOT = "scene3d"
 VIEWS = ("failed", "counterfactual")  # the two rollouts the user compares in 3D
 FRAME_EVERY = 5  # physics steps between recorded poses (5 x 4 ms = 20 ms)
 ARROW_Z_M = 0.15  # the action arrow floats this high above the table
+ARROW_RGB = (250, 120, 20)  # orange: seen against the grey table and the floor
+EYE_M = (0.0, -0.75, 0.65)  # the 3D views' camera, metres from the table's centre
+MOVED_M = 0.01  # objects that move more than this during a pick-and-place leave a trail
 
 
 def views() -> list:
-    """Blueprint views: the failed rollout and the counterfactual in 3D."""
-    return [rrb.Spatial3DView(origin=f"{ROOT}/{name}", name=f"{name} (3D)") for name in VIEWS]
+    """Blueprint views: the failed rollout and the counterfactual in 3D, seen obliquely from
+    in front of the table, the whole table in view."""
+    eye = rrb.EyeControls3D(
+        kind="Orbital", position=EYE_M, look_target=(0.0, 0.0, 0.0), eye_up=(0.0, 0.0, 1.0)
+    )
+    return [
+        rrb.Spatial3DView(origin=f"{ROOT}/{name}", name=f"{name} (3D)", eye_controls=eye)
+        for name in VIEWS
+    ]
 
 
 @lru_cache(maxsize=64)
@@ -100,6 +112,20 @@ def _log_step_poses(rec: rr.RecordingStream, base: str, scene: Scene, step: int)
             rec.log(f"{base}/{o.slot}", _transform(o.pos[:3], o.pos[3:7]))
 
 
+def _log_trails(rec: rr.RecordingStream, base: str, frames, step: int) -> None:
+    """The path of every object the pick-and-place moved, shown from `step` on: the carry
+    seen on the `step` timeline (the `sim_time` timeline plays it)."""
+    rec.reset_time()
+    rec.set_time("step", sequence=step)
+    for k, slot in enumerate(frames.slots):
+        path = np.asarray(frames.pos[:, k, :3], np.float64)  # (F, 3)
+        if len(path) > 1 and np.linalg.norm(path[-1] - path[0]) > MOVED_M:
+            rec.log(
+                f"{base}/trail/{slot}",
+                rr.LineStrips3D([path], colors=[ARROW_RGB], radii=0.003),
+            )
+
+
 def log_rollout(rec: rr.RecordingStream, world: World, name: str, traj: Trajectory) -> None:
     """Log one rollout under scene3d/<name>: meshes once, poses over time.
 
@@ -125,11 +151,12 @@ def log_rollout(rec: rr.RecordingStream, world: World, name: str, traj: Trajecto
             rr.Arrows3D(
                 origins=[(a[0], a[1], ARROW_Z_M)],
                 vectors=[(a[2] - a[0], a[3] - a[1], 0.0)],
-                colors=[(255, 255, 255)],
-                radii=0.004,
+                colors=[ARROW_RGB],
+                radii=0.008,
             ),
         )
         frames = view.frames(traj.scenes[t], a, every=FRAME_EVERY)
+        _log_trails(rec, base, frames, t + 1)
         rec.reset_time()
         for f, time_s in enumerate(frames.times_s):
             rec.set_time("sim_time", duration=t0_s + float(time_s))

@@ -60,7 +60,12 @@ class ImagePolicy(nn.Module):
             f"expected uint8 (B, {', '.join(map(str, self.config.obs_shape))}), "
             f"got {obs.dtype} {tuple(obs.shape)}"
         )
-        x = obs.permute(0, 3, 1, 2).float() / 127.5 - 1.0  # (B, 3, H, W) in [-1, 1]
+        return self.pixels(obs.float())
+
+    def pixels(self, obs: torch.Tensor) -> torch.Tensor:
+        """The same outputs from float32 pixel values (B, H, W, 3) in [0, 255]: differentiable
+        in the frames (what attributions take gradients of)."""
+        x = obs.permute(0, 3, 1, 2) / 127.5 - 1.0  # (B, 3, H, W) in [-1, 1]
         return self.head(self.trunk(x))
 
 

@@ -2,7 +2,7 @@
 
 from search.counterfactual import SearchConfig, SearchResult, counterfactual_search
 from search.enumerate import combinations, count, singles
-from search.lockstep import Candidate, compared_steps, rollout_lockstep
+from search.lockstep import Candidate, compared_steps, distance_to_demo, rollout_lockstep
 
 __all__ = [
     "Candidate",
@@ -12,6 +12,7 @@ __all__ = [
     "compared_steps",
     "count",
     "counterfactual_search",
+    "distance_to_demo",
     "rollout_lockstep",
     "singles",
 ]

@@ -126,16 +126,21 @@ def counterfactual_search(
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
     eps = world.epsilon if config.epsilon is None else config.epsilon
-    totals = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
-    if not config.first_only and sum(totals.values()) <= config.joint_below:
-        return _joint_search(world, policy, scene, demo, totals, eps, on_candidate, on_progress)
+    if not config.first_only:
+        sizes = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
+        if sum(sizes.values()) <= config.joint_below:
+            return _joint_search(world, policy, scene, demo, sizes, eps, on_candidate, on_progress)
     tried: list[Candidate] = []
     prior: dict[Change, float] = {}
+    totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
     for size in range(1, config.max_size + 1):
-        edits = combinations(
-            world.space, scene, size, prior=prior if (config.prior and size > 1) else None
+        listed = list(
+            combinations(
+                world.space, scene, size, prior=prior if (config.prior and size > 1) else None
+            )
         )
-        total = totals[size]
+        totals[size] = total = len(listed)
+        edits = iter(listed)
         done, valid = 0, []
         if on_progress is not None:
             on_progress(size, 0, total)

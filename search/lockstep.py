@@ -117,3 +117,14 @@ def rollout_lockstep(
         Candidate(edits[i], distances[i], matches[i], None if dropped[i] < 0 else int(dropped[i]))
         for i in range(n)
     ]
+
+
+def distance_to_demo(world: World, traj: Trajectory, demo: Trajectory) -> np.ndarray:
+    """float64 (T,): a rollout's per-step action distance to the demonstration (L1 for
+    continuous actions; 0 or 1, whether the actions differ, for discrete ones); NaN at the
+    steps after the demonstration ended, which are not compared."""
+    a = traj.actions.reshape(traj.horizon, -1).astype(np.float64)  # (T, A)
+    b = demo.actions.reshape(demo.horizon, -1).astype(np.float64)  # (T, A)
+    d = (a != b).any(axis=1).astype(np.float64) if world.discrete else np.abs(a - b).sum(axis=1)
+    d[compared_steps(world, demo) :] = np.nan
+    return d

@@ -37,3 +37,55 @@ def assert_learns(pairs, *, min_after: float, min_gain: float) -> None:
 @pytest.fixture(scope="session")
 def learns():
     return assert_learns
+
+
+class StudyCheck:
+    """The study's statistics computed again from their definitions (no scipy): the tests of
+    `dfa study analyse` compare its numbers with these."""
+
+    @staticmethod
+    def correct(truth: dict, selected, none: bool) -> bool:
+        """The paper's rule: every required concept ticked; "none" for an other shift."""
+        if truth["kind"] == "other":
+            return none
+        return not none and all(c in selected for c in truth["required"])
+
+    @staticmethod
+    def chi2(a: int, b: int, c: int, d: int) -> tuple[float, float]:
+        """Pearson's chi-squared of [[a, b], [c, d]] (no correction) and its p with 1 df."""
+        import math
+
+        n = a + b + c + d
+        stat = n * (a * d - b * c) ** 2 / ((a + b) * (c + d) * (a + c) * (b + d))
+        return stat, math.erfc(math.sqrt(stat / 2))
+
+    @staticmethod
+    def wilcoxon(x, y) -> float:
+        """Two-sided exact signed-rank p: every sign assignment of the ranked differences."""
+        import itertools
+
+        d = [a - b for a, b in zip(x, y, strict=True) if a != b]
+        order = sorted(range(len(d)), key=lambda i: abs(d[i]))
+        ranks = [0.0] * len(d)
+        i = 0
+        while i < len(d):  # ties share the mean of their ranks
+            j = i
+            while j + 1 < len(d) and abs(d[order[j + 1]]) == abs(d[order[i]]):
+                j += 1
+            for k in range(i, j + 1):
+                ranks[order[k]] = (i + j) / 2 + 1
+            i = j + 1
+        observed = sum(r for r, v in zip(ranks, d, strict=True) if v > 0)
+        mean = sum(ranks) / 2
+        flips = list(itertools.product((0, 1), repeat=len(d)))
+        extreme = sum(
+            abs(sum(r for r, s in zip(ranks, signs, strict=True) if s) - mean)
+            >= abs(observed - mean) - 1e-9
+            for signs in flips
+        )
+        return extreme / len(flips)
+
+
+@pytest.fixture(scope="session")
+def study_check():
+    return StudyCheck

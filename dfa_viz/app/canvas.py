@@ -16,6 +16,7 @@ from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
 
 SIZE = 12.0  # plane width and height in scene units
+GHOST_RGB = (30, 160, 60)  # the counterfactual's objects: green wireframes over the solid ones
 
 
 class Canvas:
@@ -26,13 +27,25 @@ class Canvas:
         self._shown: tuple | None = None
         self._meshes: tuple | None = None
         self._mesh_nodes: dict[str, object] = {}
+        self._oblique_for: tuple | None = None
+        self.covered = False  # the Sweep tab's heatmap lies over the image: clicks are its own
         self.pin_camera()
+        # clicks anywhere in the view (not on the plane as a clickable node, which viser would
+        # paint yellow under the pointer): a click off the image can then be told so
+        client.scene.on_click()(self._on_click)
 
     def pin_camera(self) -> None:
         """Look straight down at the plane (again: arrow keys also turn viser's camera)."""
         cam = self.client.camera
         cam.up_direction = (0.0, 1.0, 0.0)
         cam.position = (0.0, 0.0, 1.9 * SIZE)
+        cam.look_at = (0.0, 0.0, 0.0)
+
+    def oblique_camera(self) -> None:
+        """Look at the plane from the front, above it at an angle (the 3D scenes)."""
+        cam = self.client.camera
+        cam.up_direction = (0.0, 0.0, 1.0)
+        cam.position = (0.0, -1.1 * SIZE, 1.0 * SIZE)
         cam.look_at = (0.0, 0.0, 0.0)
 
     def refresh(self, view: View, *, force: bool = False) -> None:
@@ -46,6 +59,9 @@ class Canvas:
             self._shown = key
             if new_task or view.demo_kind == "keys":
                 self.pin_camera()
+            if self._meshes_shown(view) and key[1] != (self._oblique_for or (None, None))[1]:
+                self.oblique_camera()  # the 3D objects, seen at an angle once they are drawn
+            self._oblique_for = key if self._meshes_shown(view) else None
             image = self.state.demo_canvas()
             if image is not None and self._meshes_shown(view):
                 image = np.broadcast_to(image[2, 2], image.shape)  # the bare table under the meshes
@@ -58,7 +74,6 @@ class Canvas:
                 self.plane = self.client.scene.add_image(
                     "/canvas", image, SIZE, SIZE, format="png", receive_shadow=False
                 )
-                self.plane.on_click(self._on_click)
             else:
                 self.plane.image = image
                 self.plane.visible = True
@@ -73,10 +88,11 @@ class Canvas:
             return
         hit = o - o[2] / d[2] * d  # (3,) on z = 0
         u, v = hit[0] / SIZE + 0.5, 0.5 - hit[1] / SIZE
-        if not (0.0 <= u <= 1.0 and 0.0 <= v <= 1.0):
-            return
         view = self.state.snapshot()
-        if view.stage != "demonstrate" or view.demo_kind != "clicks":
+        if self.covered or view.stage != "demonstrate" or view.demo_kind != "clicks":
+            return
+        if not (0.0 <= u <= 1.0 and 0.0 <= v <= 1.0):
+            self.notify("that click missed the image: click on the picture of the task")
             return
         self.state.demo_click(float(u), float(v))
 
@@ -110,23 +126,38 @@ class Canvas:
     def _add_meshes(self, view3d, failed, counterfactual, step: int) -> dict[str, object]:
         k = SIZE / (2 * view3d.view_half_m)  # metres -> scene units: the plane spans the view
         nodes: dict[str, object] = {}
-        for name, traj, opacity in (
-            ("failed", failed, None),
-            ("counterfactual", counterfactual, 0.45),
+        for name, traj, wireframe in (
+            ("failed", failed, False),
+            ("counterfactual", counterfactual, True),
         ):
             if traj is None:
                 continue
             scene = traj.scenes[min(step, len(traj.scenes) - 1)]
-            for p in view3d.poses(scene):
+            poses = view3d.poses(scene)
+            if wireframe:  # the ghost: only what differs from the failed scene at this step
+                solid = {
+                    q.slot: q
+                    for q in view3d.poses(failed.scenes[min(step, len(failed.scenes) - 1)])
+                }
+                poses = [p for p in poses if _differs(p, solid.get(p.slot))]
+            for p in poses:
                 mesh = view3d.mesh(p.shape)
                 path = f"/scenes/{name}/{p.slot}"
                 nodes[path] = self.client.scene.add_mesh_simple(
                     path,
                     np.asarray(mesh.vertices, np.float32) * k,
                     np.asarray(mesh.faces, np.uint32),
-                    color=tuple(int(255 * c) for c in p.rgba[:3]),
-                    opacity=opacity,
+                    color=GHOST_RGB if wireframe else tuple(int(255 * c) for c in p.rgba[:3]),
+                    wireframe=wireframe,
                     wxyz=p.quat,
                     position=(p.pos[0] * k, p.pos[1] * k, p.pos[2] * k + 0.01),
                 )
         return nodes
+
+
+def _differs(pose, other, tol_m: float = 0.005) -> bool:
+    """Whether an object's pose or look differs from another's (None: it is not there)."""
+    if other is None:
+        return True
+    moved = np.linalg.norm(np.asarray(pose.pos[:3]) - np.asarray(other.pos[:3])) > tol_m
+    return moved or (pose.shape, pose.colour) != (other.shape, other.colour)

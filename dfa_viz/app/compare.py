@@ -1,6 +1,8 @@
 """The compare panel of one tab: failed | demonstration | counterfactual (| finetuned), frame-
 synced under one timeline slider with play/pause, step and speed, and the action-distance
-trace with the current step marked. The slider position belongs to the tab, not the session.
+trace with the current step marked. The slider position belongs to the tab, not the session,
+and so does the saliency overlay: a captum method's maps of the failed rollout (against the
+demonstration) blended into its frames, beside the counterfactual (dfa_viz.overlay).
 """
 
 from __future__ import annotations
@@ -11,19 +13,21 @@ import time
 import numpy as np
 import viser
 
+from dfa_viz import charts
 from dfa_viz.app import frames, plots
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
+from dfa_viz.overlay import SaliencyLayer, blend, failed_saliency
+from policy.saliency import METHOD_NAMES
+from search import distance_to_demo
+from sim.core import UserError
 
 SPEEDS = {"0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 BASE_FPS = 4.0  # frames per second at 1×
+PANEL_PX = 620  # the compare panel's width: the 3D view keeps the middle
 PLAYBACK = ("« start", "◀ step", "▶ play", "❚❚ pause", "step ▶")
-CAPTION_COLOURS = {
-    "failed": (217, 72, 15),
-    "demonstration": (134, 142, 150),
-    "counterfactual": (47, 158, 68),
-    "finetuned": (28, 126, 214),
-}
+SALIENCY_OFF = "off"
+SALIENCY = {SALIENCY_OFF: None, **{name: method for method, name in METHOD_NAMES.items()}}
 
 
 class ComparePanel:
@@ -32,6 +36,8 @@ class ComparePanel:
         self._lock = threading.RLock()
         self._view: View | None = None
         self._key: tuple | None = None
+        self._bars_key: tuple | None = None
+        self._overlay: tuple | None = None  # (rollout, demo, method, layer or None, note)
         self._playing = threading.Event()
         self._closed = threading.Event()
         gui = client.gui
@@ -46,17 +52,31 @@ class ComparePanel:
             self.slider = gui.add_slider("step", min=0, max=1, step=1, initial_value=0)
             self.playback = gui.add_button_group("playback", PLAYBACK)
             self.speed = gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1×")
+            self.saliency = gui.add_dropdown(
+                "saliency",
+                tuple(SALIENCY),
+                initial_value=SALIENCY_OFF,
+                hint="Overlay where the failed rollout's frames push the policy away from the "
+                "demonstration (captum)",
+            )
+            self.saliency_note = gui.add_markdown("", visible=False)
             data, series, scales = plots.distance_plot(_dummy_world(), None, {}, 0)
             self.trace = gui.add_uplot(
                 data,
                 series,
                 scales=scales,
+                axes=plots.DISTANCE_AXES,
                 title="action distance to the demonstration",
                 aspect=2.0,
             )
+            # one-step worlds: a bar per rollout against the bound instead of one-point curves
+            self.bars = gui.add_image(
+                np.full((8, 8, 3), 255, np.uint8), label="distance", format="png", visible=False
+            )
         self.panel.dock_right()
-        self.panel.set_width(700)
+        self.panel.set_width(PANEL_PX)
         self.slider.on_update(lambda _: self.show())
+        self.saliency.on_update(lambda _: self.show(force=True))
         self.playback.on_click(self._on_playback)
         self._player = threading.Thread(target=self._play_loop, daemon=True)
         self._player.start()
@@ -96,31 +116,52 @@ class ComparePanel:
             "demonstrate": "after your demonstration",
             "diagnose": "searching…",
         }.get(view.stage, "no counterfactual found")
-        cols = [
-            ("failed", frames.frame_at(run.rollout, step), "", CAPTION_COLOURS["failed"]),
-            (
-                "demonstration",
-                frames.frame_at(run.demo, step),
-                "no demonstration yet",
-                CAPTION_COLOURS["demonstration"],
-            ),
-            (
-                "counterfactual",
-                frames.frame_at(counterfactual, step),
-                cf_missing,
-                CAPTION_COLOURS["counterfactual"],
-            ),
+        shown = [
+            ("failed", run.rollout, ""),
+            ("demonstration", run.demo, "no demonstration yet"),
+            ("counterfactual", counterfactual, cf_missing),
         ]
         if run.adaptation is not None:
-            cols.append(
-                (
-                    "finetuned",
-                    frames.frame_at(run.adaptation.rollout, step),
-                    "",
-                    CAPTION_COLOURS["finetuned"],
-                )
-            )
+            shown.append(("finetuned", run.adaptation.rollout, ""))
+        layer = self._saliency(view)
+        cols = []
+        for name, traj, missing in shown:
+            title = name + ("" if traj is None else (" ✓" if traj.success else " ✗"))
+            frame = frames.frame_at(traj, step)
+            if name == "failed" and layer is not None:
+                title += f" · {METHOD_NAMES[layer.method]}"
+                if frame is not None and step < len(layer.maps):
+                    frame = blend(frame, layer.maps[step])
+            cols.append((title, frame, missing, tuple(charts.rgb(name))))
         return cols
+
+    def _saliency(self, view: View) -> SaliencyLayer | None:
+        """The chosen method's maps of the failed rollout, computed once per rollout,
+        demonstration and method; the note under the dropdown says what they show."""
+        run, method = view.record, SALIENCY.get(self.saliency.value)
+        if method is None:
+            self.saliency_note.visible = False
+            return None
+        cached = self._overlay
+        same = cached is not None and cached[0] is run.rollout and cached[1] is run.demo
+        if not same or cached[2] != method:
+            note, layer = "", None
+            try:
+                policy = self.state.policies.get(view.world)
+                layer = failed_saliency(view.world, policy, run, method)
+            except UserError as e:
+                note = str(e)
+            if layer is None and not note:
+                note = "The saliency of the failed rollout is shown after your demonstration."
+            elif layer is not None:
+                note = (
+                    f"{METHOD_NAMES[method]}: where the failed rollout's frames push the "
+                    "policy's action away from the demonstration's (brighter is more)."
+                )
+            cached = self._overlay = (run.rollout, run.demo, method, layer, note)
+        self.saliency_note.content = cached[4]
+        self.saliency_note.visible = True
+        return cached[3]
 
     def show(self, *, force: bool = False) -> None:
         """Draw the frames and the trace marker at the slider's step."""
@@ -143,16 +184,39 @@ class ComparePanel:
             traces = {"failed": run.rollout, "counterfactual": cf}
             if run.adaptation is not None:
                 traces["finetuned"] = run.adaptation.rollout
+            one_step = view.world.horizon == 1
             data, series, scales = plots.distance_plot(view.world, run.demo, traces, step)
             with self.client.atomic():
                 self.image.image = image
-                if len(self.trace.series) != len(series) or force:
-                    self.trace.series = series
+                self.trace.visible = not one_step
+                if one_step:
+                    self._draw_bars(view, traces, force=force)
+                else:
+                    if len(self.trace.series) != len(series) or force:
+                        self.trace.series = series
                     self.trace.scales = scales
-                self.trace.data = data
+                    self.trace.data = data
             self.client.flush()
         if self.on_step is not None:
             self.on_step(view, step)
+
+    def _draw_bars(self, view: View, traces: dict, *, force: bool) -> None:
+        """One-step worlds: each rollout's distance to the demonstration, a bar against ε."""
+        run = view.record
+        key = (view.version, "bars")
+        if run.demo is None:
+            self.bars.visible = False
+            return
+        if key == self._bars_key and not force:
+            return
+        self._bars_key = key
+        values = {
+            name: float(np.nansum(distance_to_demo(view.world, traj, run.demo)))
+            for name, traj in traces.items()
+            if traj is not None
+        }
+        self.bars.image = charts.distance_bars(values, view.world.epsilon)
+        self.bars.visible = True
 
     # -- playback -----------------------------------------------------------------------------
     def _on_playback(self, event) -> None:

@@ -19,6 +19,8 @@ import numpy as np
 from dfa_viz.app import frames
 from sim.core import Key, Task, Trajectory, UserError, World
 
+NEAR_SHARE = 0.08  # a click within this share of the image's width is on an object
+
 
 class DemoInput:
     """The demonstration being built for one task (shared by every tab of a session)."""
@@ -97,6 +99,18 @@ class DemoInput:
         x0, x1, y0, y1 = self.world.image_extent
         return (x - x0) / (x1 - x0), (y1 - y) / (y1 - y0)
 
+    def _where(self, x: float, y: float) -> str:
+        """What a point of the image is on, in words: "on the goal", "on empty floor"."""
+        x0, x1, _, _ = self.world.image_extent
+        near = NEAR_SHARE * abs(x1 - x0)
+        best, slot = near, None
+        for o in self.task.scene.objects:
+            if o.present and len(o.pos) >= 2:
+                d = float(np.hypot(o.pos[0] - x, o.pos[1] - y))
+                if d < best:
+                    best, slot = d, o.slot
+        return f"on the {slot}" if slot is not None else "on empty space"
+
 
 class WaypointDemo(DemoInput):
     """ "waypoints": the agent walks the clicked path from its start at constant speed."""
@@ -129,7 +143,10 @@ class WaypointDemo(DemoInput):
         return tuple(self.points)
 
     def summary(self) -> str:
-        return ", ".join(f"({x:.1f}, {y:.1f})" for x, y in self.points)
+        if not self.points:
+            return ""
+        n = len(self.points)
+        return f"{n} waypoint{'s' if n > 1 else ''}, ends {self._where(*self.points[-1])}"
 
     def _make(self) -> Trajectory:
         if not self.points:
@@ -251,8 +268,8 @@ class PickPlaceDemo(DemoInput):
 
     def summary(self) -> str:
         names = ("pick", "place")
-        return ", ".join(
-            f"{n} ({x:.2f}, {y:.2f}) m" for n, (x, y) in zip(names, self.points, strict=False)
+        return "; ".join(
+            f"{n} {self._where(x, y)}" for n, (x, y) in zip(names, self.points, strict=False)
         )
 
     def _make(self) -> Trajectory:

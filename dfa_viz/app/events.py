@@ -36,6 +36,7 @@ from policy.evaluate import Score, score
 from search import SearchResult
 from sim import check_world_name, get_world
 from sim.core import (
+    Edit,
     Feedback,
     Label,
     Trajectory,
@@ -46,6 +47,7 @@ from sim.core import (
 )
 
 VERSION = 1
+SWEEP = "sweep"  # the shift of a task the sweep found (a training task with one edit)
 
 
 def _world(value: str, name: str) -> str:
@@ -104,27 +106,50 @@ class SessionStarted:
 @dataclass(frozen=True)
 class TaskLoaded:
     """A test task was loaded: the failing task of (world, shift, seed), whose own seed is
-    task_seed."""
+    task_seed; or (shift "sweep", with `edit`) a failure the sweep found: training task
+    task_seed with the edit made, the object it adds at `pos` when given."""
 
     TYPE: ClassVar[str] = "task"
     world: str
     shift: str
     seed: int
     task_seed: int
+    edit: Edit | None = None
+    pos: tuple[float, ...] | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        d: dict[str, Any] = {
+            "world": self.world,
+            "shift": self.shift,
+            "seed": self.seed,
+            "task_seed": self.task_seed,
+        }
+        if self.edit is not None:
+            d["edit"] = self.edit.to_list()
+        if self.pos is not None:
+            d["pos"] = list(self.pos)
+        return d
 
     @classmethod
     def from_json(cls, d: dict) -> TaskLoaded:
         k = cls.TYPE
         world, shift = _get(d, k, "world", (str,)), _get(d, k, "shift", (str,))
         seed, task_seed = _get(d, k, "seed", (int,)), _get(d, k, "task_seed", (int,))
+        edit = _get(d, k, "edit", (list,), default=None)
+        pos = _get(d, k, "pos", (list,), default=None)
+        if pos is not None and not all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in pos
+        ):
+            raise UserError(f"{k}.pos must be a list of numbers, got {json.dumps(pos)[:60]}")
+        if (edit is None) != (shift != SWEEP):
+            raise UserError(f"{k}: a task with an edit has shift {SWEEP!r}, and only such a one")
         return cls(  # every type first, then the values
             _world(world, f"{k}.world"),
-            _shift(shift, f"{k}.shift"),
+            shift if edit is not None else _shift(shift, f"{k}.shift"),
             check_seed(seed, f"{k}.seed"),
             check_seed(task_seed, f"{k}.task_seed"),
+            None if edit is None else Edit.from_list(edit),
+            None if pos is None else tuple(float(v) for v in pos),
         )
 
 
@@ -343,7 +368,13 @@ def apply(
         from dfa_viz.loop import start
 
         world = get_world(event.world)
-        task = world.test_task(event.shift, event.task_seed)
+        if event.edit is not None:
+            from search.sweep import Example, failure_task
+
+            example = Example(event.task_seed, event.edit, False, event.pos)
+            task = failure_task(world, example)
+        else:
+            task = world.test_task(event.shift, event.task_seed)
         return start(world, rebuild.policy(world), task, shift=event.shift, seed=event.seed)
     if isinstance(event, Judged):
         return judged(need(record, "judge"), event.failed)

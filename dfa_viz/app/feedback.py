@@ -8,92 +8,124 @@ import viser
 
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
-from sim.core import Change, Label, UserError
+from sim.core import Change, ConceptSpace, Label, UserError
 
 TI = "Task-irrelevant (TI)"
 TR = "Task-relevant (TR)"
-MAX_CHECKBOXES = 12  # above this many instantiations, a comma-separated text field
+MAX_CHECKBOXES = 12  # above this many instantiations, a compact picker
+ALL, EDIT_ONLY = "all of them", "only the two shown"
+NOT_CHOSEN = "—"
 
 
 class MarkControls:
-    """The controls for one edited concept."""
+    """The controls for one edited concept: two answer buttons (the chosen one marked ✔ and
+    coloured), and for TI which instantiations are fine: checkboxes for a few, a compact
+    picker for many (all / only the two shown, leave one out, put one back)."""
 
-    def __init__(self, gui, state: LoopState, change: Change, values: tuple[str, ...], warn):
-        self.state, self.change, self.values, self.warn = state, change, values, warn
+    def __init__(self, gui, state: LoopState, change: Change, space: ConceptSpace, warn):
+        self.state, self.change, self.warn = state, change, warn
+        self.space = space
+        self.values = space.values(change.slot, change.concept)
         self.key = (change.slot, change.concept)
         name = f"{change.slot}.{change.concept}"
         gui.add_markdown(f"**{name}**: {change.old} → {change.new}")
-        self.choice = gui.add_button_group(name, (TI, TR))
+        self.ti = gui.add_button(TI, color="gray", hint="the policy should ignore it")
+        self.tr = gui.add_button(TR, color="gray", hint="the policy is right to care")
         self.status = gui.add_markdown("not marked yet")
         self.boxes: dict[str, viser.GuiCheckboxHandle] = {}
-        self.text = None
-        if len(values) <= MAX_CHECKBOXES:
-            for v in values:
+        self.preset = self.leave_out = self.put_back = None
+        self._acceptable: tuple[str, ...] = self.values
+        if len(self.values) <= MAX_CHECKBOXES:
+            for v in self.values:
                 box = gui.add_checkbox(f"{v}", True, hint=f"{name} = {v} is fine", visible=False)
                 box.on_update(self._on_box)
                 self.boxes[v] = box
         else:
-            self.text = gui.add_text(
-                f"acceptable {change.concept}s",
-                "",
-                hint="comma-separated; empty = all",
-                visible=False,
+            self.preset = gui.add_button_group("fine", (ALL, EDIT_ONLY), visible=False)
+            self.leave_out = gui.add_dropdown(
+                "leave out", (NOT_CHOSEN, *self.values), visible=False
             )
-            self.text.on_update(self._on_box)
-        self.choice.on_click(self._on_choice)
+            self.put_back = gui.add_dropdown("put back", (NOT_CHOSEN,), visible=False)
+            self.preset.on_click(self._on_preset)
+            self.leave_out.on_update(self._on_leave_out)
+            self.put_back.on_update(self._on_put_back)
+        self.ti.on_click(lambda _: self._answer(relevant=False))
+        self.tr.on_click(lambda _: self._answer(relevant=True))
 
     def acceptable(self) -> tuple[str, ...]:
-        if self.text is not None:
-            raw = [v.strip() for v in self.text.value.split(",") if v.strip()]
-            bad = [v for v in raw if v not in self.values]
-            if bad:
-                raise UserError(
-                    f"unknown {self.change.concept} {bad}; accepted: {', '.join(self.values)}"
-                )
-            return tuple(raw) or self.values
-        return tuple(v for v, box in self.boxes.items() if box.value)
+        if self.boxes:
+            return tuple(v for v, box in self.boxes.items() if box.value)
+        return self._acceptable
 
-    def _on_choice(self, event) -> None:
-        relevant = event.target.value == TR
+    def _answer(self, *, relevant: bool) -> None:
         try:
-            acceptable = () if relevant else self.acceptable()
-            if not relevant and not acceptable:
-                acceptable = self.values
+            acceptable = () if relevant else (self.acceptable() or self.values)
             self.state.mark(*self.key, relevant=relevant, acceptable=acceptable)
+        except UserError as e:
+            self.warn(str(e))
+
+    def _set(self, acceptable: tuple[str, ...]) -> None:
+        """Mark TI with these instantiations (at least one is kept)."""
+        if not acceptable:
+            self.warn("keep at least one acceptable instantiation, or mark the concept TR")
+            self.sync(self.state.snapshot().record.label(*self.key))
+            return
+        try:
+            self.state.mark(*self.key, relevant=False, acceptable=acceptable)
         except UserError as e:
             self.warn(str(e))
 
     def _on_box(self, event) -> None:
         if event.client is None:
             return  # set from the shared state, not by this user
-        try:
-            acceptable = self.acceptable()
-            if not acceptable:
-                self.warn("keep at least one acceptable instantiation, or mark the concept TR")
-                self.sync(self.state.snapshot().record.label(*self.key))
-                return
-            self.state.mark(*self.key, relevant=False, acceptable=acceptable)
-        except UserError as e:
-            self.warn(str(e))
+        self._set(self.acceptable())
+
+    def _on_preset(self, event) -> None:
+        both = {self.change.old, self.change.new}
+        chosen = (
+            self.values if event.target.value == ALL else tuple(v for v in self.values if v in both)
+        )
+        self._set(chosen)
+
+    def _on_leave_out(self, event) -> None:
+        value = self.leave_out.value
+        if event.client is None or value == NOT_CHOSEN:
+            return
+        self._set(tuple(v for v in self._acceptable if v != value))
+
+    def _on_put_back(self, event) -> None:
+        value = self.put_back.value
+        if event.client is None or value == NOT_CHOSEN:
+            return
+        keep = set(self._acceptable) | {value}
+        self._set(tuple(v for v in self.values if v in keep))
 
     def sync(self, label: Label | None) -> None:
         """Show the shared mark (set by this tab or another)."""
         ti = label is not None and not label.relevant
+        tr = label is not None and label.relevant
+        self.ti.label, self.ti.color = (f"✔ {TI}", "green") if ti else (TI, "gray")
+        self.tr.label, self.tr.color = (f"✔ {TR}", "orange") if tr else (TR, "gray")
         if label is None:
             self.status.content = "not marked yet"
         elif label.relevant:
-            self.status.content = "✔ **TR** — the policy is right to care; no augmentation"
+            self.status.content = "the policy is right to care: no variants of it"
         else:
-            self.status.content = "✔ **TI** — acceptable: " + ", ".join(label.acceptable)
+            fine = self.space.describe(self.change.slot, self.change.concept, label.acceptable)
+            self.status.content = f"variants may take: {fine}"
         for v, box in self.boxes.items():
             box.visible = ti
             if ti:
                 box.value = v in label.acceptable
-        if self.text is not None:
-            self.text.visible = ti
-            if ti:
-                acc = label.acceptable
-                self.text.value = "" if set(acc) == set(self.values) else ", ".join(acc)
+        if self.preset is not None:
+            self._acceptable = label.acceptable if ti else self.values
+            left_out = tuple(v for v in self.values if v not in set(self._acceptable))
+            for handle in (self.preset, self.leave_out, self.put_back):
+                handle.visible = ti
+            self.leave_out.options = (NOT_CHOSEN, *self._acceptable)
+            self.leave_out.value = NOT_CHOSEN
+            self.put_back.options = (NOT_CHOSEN, *left_out)
+            self.put_back.value = NOT_CHOSEN
 
 
 class FeedbackSection:
@@ -136,12 +168,12 @@ class FeedbackSection:
             return
         self.intro.content = (
             "For what you want, is each edited concept **task-irrelevant** (the policy should "
-            "ignore it: augment over the instantiations you accept) or **task-relevant**?"
+            "ignore it: it is shown variants of your demonstration with other looks you accept) "
+            "or **task-relevant** (the policy is right to care)?"
         )
         gui = self.client.gui
         with self.folder:
             self._holder = gui.add_folder("edited concepts")
             with self._holder:
                 for ch in edit.ordered:
-                    values = world.space.values(ch.slot, ch.concept)
-                    self.controls.append(MarkControls(gui, self.state, ch, values, self.warn))
+                    self.controls.append(MarkControls(gui, self.state, ch, world.space, self.warn))

@@ -7,6 +7,7 @@ with nearest-neighbour repetition and sent as PNG.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -19,8 +20,17 @@ BACKGROUND = (246, 247, 249)
 INK = (33, 37, 41)
 MUTED = (120, 124, 130)
 
-_FONT = ImageFont.load_default(size=14)
-_SMALL = ImageFont.load_default(size=12)
+
+def _font(size: int):
+    """DejaVu Sans (matplotlib ships it: it has ✓ and ✗), else Pillow's own font."""
+    import matplotlib
+
+    path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"
+    return ImageFont.truetype(str(path), size) if path.exists() else ImageFont.load_default(size)
+
+
+_FONT = _font(14)
+_SMALL = _font(12)
 
 
 def scale_for(frame_shape: Sequence[int], target_px: int = FRAME_PX) -> int:

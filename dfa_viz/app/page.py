@@ -17,10 +17,16 @@ from dfa_viz.app.canvas import Canvas
 from dfa_viz.app.compare import ComparePanel
 from dfa_viz.app.feedback import FeedbackSection
 from dfa_viz.app.state import LoopState
+from dfa_viz.app.sweep import SweepTab
 from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
 from dfa_viz.app.view import View
 from sim import get_world
 from sim.core import UserError
+
+PANEL_PX = 360  # the control panel's width; the compare panel takes the right side
+# the next action's labels (none contains another button's name: tests find buttons by name)
+USE_DEMO, ASK_EXPERT = "Continue: search with my demonstration", "Continue: the expert shows it"
+FINETUNE, NEXT_TASK = "Continue: make variants and finetune", "Continue: another task"
 
 
 class Page:
@@ -33,10 +39,14 @@ class Page:
         self._task_shown: int | None = None
         gui = client.gui
         client.gui.main_panel.dock_left()
-        client.gui.main_panel.set_width(400)
+        client.gui.main_panel.set_width(PANEL_PX)
         self.header = gui.add_markdown("### DFA — diagnose, feedback, adapt")
         self.status = gui.add_markdown("")
         self.error = gui.add_markdown("", visible=False)
+        # what to do next, and the running job, stay at the top whatever is scrolled below
+        self.primary = gui.add_button("", icon=viser.Icon.ARROW_RIGHT, visible=False)
+        self.job_bar = gui.add_progress_bar(0, animated=True, visible=False)
+        self._stage_shown: str | None = None
 
         with gui.add_folder("1 · Task"):
             self.world = gui.add_dropdown("world", worlds, initial_value=state.world_name)
@@ -45,7 +55,6 @@ class Page:
             self.seed = gui.add_number("seed", 0, min=0, step=1)
             self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY)
             self.next = gui.add_button("Next task", icon=viser.Icon.PLAYER_TRACK_NEXT)
-            self.task_job = gui.add_progress_bar(0, animated=True, visible=False)
 
         self.judge_folder = gui.add_folder("2 · Judge", visible=False)
         with self.judge_folder:
@@ -65,7 +74,6 @@ class Page:
 
         self.diag_folder = gui.add_folder("4 · Diagnose", visible=False)
         with self.diag_folder:
-            self.search_job = gui.add_progress_bar(0, animated=True, visible=False)
             self.diagnosis = gui.add_markdown("")
             self.tie = gui.add_dropdown("minimal edit", ("—",), visible=False)
             self.delta = gui.add_markdown("")
@@ -75,11 +83,16 @@ class Page:
         self.adapt_folder = gui.add_folder("6 · Adapt", visible=False)
         with self.adapt_folder:
             self.finetune = gui.add_button("Augment & finetune", icon=viser.Icon.BOLT)
-            self.finetune_job = gui.add_progress_bar(0, animated=True, visible=False)
             steps = state.adapt.train_config(0).steps
-            data, series, scales = plots.loss_plot([], steps)
+            data, series, scales, axes = plots.loss_plot([], steps)
             self.loss = gui.add_uplot(
-                data, series, scales=scales, title="finetuning loss", aspect=2.0, visible=False
+                data,
+                series,
+                scales=scales,
+                axes=axes,
+                title="finetuning loss",
+                aspect=2.0,
+                visible=False,
             )
             self.results = gui.add_markdown("")
 
@@ -89,6 +102,14 @@ class Page:
 
         self.compare = ComparePanel(client, state, on_step=self._on_step)
         self.canvas = Canvas(client, state, self.warn)
+        self.sweep = SweepTab(
+            client,
+            state,
+            self.compare.panel,
+            self.canvas,
+            world=lambda: self.world.value,
+            warn=self.warn,
+        )
         self._wire()
         self.unsubscribe = state.subscribe(self.on_change)
         self.on_change({"all"})
@@ -128,6 +149,7 @@ class Page:
         self.undo.on_click(self._guard(lambda _: s.demo_undo()))
         self.clear.on_click(self._guard(lambda _: s.demo_clear()))
         self.finetune.on_click(self._guard(lambda _: s.finetune()))
+        self.primary.on_click(self._guard(self._on_primary))
         self.download.on_click(self._guard(self._download))
 
         @self.tie.on_update
@@ -166,6 +188,7 @@ class Page:
                 self.compare.refresh(view)
             if what & {"all", "stage", "losses", "job"}:
                 self._draw_adapt(view)
+            self.sweep.refresh(busy=view.job is not None)
         self.client.flush()
 
     def _draw_controls(self, view: View) -> None:
@@ -175,7 +198,8 @@ class Page:
             self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
             self.world.value = run.world
             self._offer_shifts(run.world)
-            self.shift.value = run.shift
+            if run.shift in self.shift.options:  # not a failure the sweep found
+                self.shift.value = run.shift
             self.seed.value = run.seed
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
@@ -184,14 +208,9 @@ class Page:
         for b in (self.load, self.next):
             b.disabled = busy or not pickable
         job = view.job
-        for bar, names in (
-            (self.task_job, ("task",)),
-            (self.search_job, ("search",)),
-            (self.finetune_job, ("finetune",)),
-        ):
-            bar.visible = job is not None and job.name in names
-            if bar.visible:
-                bar.value = round(100 * job.progress, 1)
+        self.job_bar.visible = job is not None
+        if job is not None:
+            self.job_bar.value = round(100 * job.progress, 1)
         self.judge_folder.visible = run is not None and stage in ("judge", "solved")
         for b in (self.failed, self.succeeded):
             b.disabled = busy or stage != "judge"
@@ -211,12 +230,54 @@ class Page:
         self.adapt_folder.visible = run is not None and stage in ("feedback", "adapted")
         self.finetune.disabled = busy or (run is not None and bool(run.unmarked()))
         self.download.disabled = run is None
+        self._draw_primary(view)
+        if stage != self._stage_shown:  # give the demonstration image the room it needs
+            self._stage_shown = stage
+            if stage == "demonstrate":
+                self.compare.panel.minimize()
+            else:
+                self.compare.panel.expand()
         rec = view.recording
         self.share.content = (
             f"Recording: `{rec}`  \nSession: `{view.session}`"
             if rec is not None
             else f"Session: `{view.session}`"
         )
+
+    def _next_action(self, view: View) -> tuple[str, bool] | None:
+        """The active stage's primary action (label, enabled), or None where there is none."""
+        run, busy = view.record, view.job is not None
+        if run is None or view.stage == "solved":
+            return None
+        if view.stage == "demonstrate":
+            if view.demo_kind in ("clicks", "keys") and view.demo_given:
+                return USE_DEMO, not busy and view.demo_ready
+            return ASK_EXPERT, not busy
+        if view.stage == "feedback":
+            return FINETUNE, not busy and not run.unmarked()
+        if view.stage == "adapted":
+            return NEXT_TASK, not busy
+        return None
+
+    def _draw_primary(self, view: View) -> None:
+        action = self._next_action(view)
+        self.primary.visible = action is not None
+        if action is not None:
+            self.primary.label, enabled = action
+            self.primary.disabled = not enabled
+
+    def _on_primary(self, _event):
+        view = self.state.snapshot()
+        action = self._next_action(view)
+        if action is None or not action[1]:
+            return None
+        s = self.state
+        return {
+            USE_DEMO: lambda: s.demonstrate(expert=False),
+            ASK_EXPERT: lambda: s.demonstrate(expert=True),
+            FINETUNE: s.finetune,
+            NEXT_TASK: s.next_task,
+        }[action[0]]()
 
     def _draw_diagnosis(self, view: View) -> None:
         run = view.record
@@ -248,7 +309,8 @@ class Page:
             losses = run.adaptation.losses
         self.loss.visible = bool(losses)
         if losses:
-            data, _, _ = plots.loss_plot(losses, view.adapt.train_config(0).steps)
+            data, _, scales, axes = plots.loss_plot(losses, view.adapt.train_config(0).steps)
+            self.loss.scales, self.loss.axes = scales, axes
             self.loss.data = data
         self.results.content = results_text(view)
 

@@ -6,26 +6,9 @@ from __future__ import annotations
 import numpy as np
 from viser import uplot
 
-from search import compared_steps
+from dfa_viz.charts import COLOURS
+from search import distance_to_demo
 from sim.core import Trajectory, World
-
-COLOURS = {
-    "failed": "#d9480f",
-    "counterfactual": "#2f9e44",
-    "finetuned": "#1c7ed6",
-    "epsilon": "#868e96",
-    "step": "#212529",
-}
-
-
-def distance(world: World, traj: Trajectory, demo: Trajectory) -> np.ndarray:
-    """float64 (T,): per-step action distance to the demonstration (L1; 0/1 for discrete);
-    NaN after the demonstration has ended (those steps are not compared)."""
-    a = traj.actions.reshape(traj.horizon, -1).astype(np.float64)
-    b = demo.actions.reshape(demo.horizon, -1).astype(np.float64)
-    d = (a != b).any(axis=1).astype(np.float64) if world.discrete else np.abs(a - b).sum(axis=1)
-    d[compared_steps(world, demo) :] = np.nan
-    return d
 
 
 def distance_plot(
@@ -35,57 +18,67 @@ def distance_plot(
     step: int,
 ):
     """Distances of each named rollout to the demonstration over steps, the search's bound,
-    and a marker on every trace at `step` (the slider's step)."""
+    and "now", a vertical line at `step` (the slider's step).
+
+    The line is drawn as its own series over a repeated x value: x is 0, 1, ..., step, step,
+    ..., T-1 with every other series repeating its value there, and "now" set only at the two
+    copies (0 and the top)."""
     horizon = world.horizon
+    t = min(max(step, 0), horizon - 1)
     x = np.arange(horizon, dtype=np.float64)
-    data: list[np.ndarray] = [x]
+    lines: list[np.ndarray] = []
     series: list[uplot.Series] = [{"label": "step"}]
     top = 1.0
     if demo is not None:
         for name, traj in traces.items():
             if traj is None:
                 continue
-            d = distance(world, traj, demo)
+            d = distance_to_demo(world, traj, demo)
             top = max(top, float(np.nanmax(d, initial=0.0)))
-            data.append(d)
+            lines.append(d)
             series.append({"label": name, "stroke": COLOURS.get(name, "#495057"), "width": 2})
         if not world.discrete and world.epsilon > 0:
-            data.append(np.full(horizon, world.epsilon))
+            lines.append(np.full(horizon, world.epsilon))
             series.append(
                 {"label": "ε", "stroke": COLOURS["epsilon"], "width": 1, "dash": (4.0, 4.0)}
             )
-    lines = data[1:]
-    marker = np.full(horizon, np.nan)
-    t = min(step, horizon - 1)
-    at_t = [float(v[t]) for v in lines if not np.isnan(v[t])]
-    if at_t:
-        marker[t] = max(at_t)
-    data.append(marker)
-    series.append(
-        {
-            "label": "now",
-            "stroke": COLOURS["step"],
-            "width": 0,
-            "points": {"show": True, "size": 11, "fill": "#fab005", "width": 2},
-        }
-    )
+    top = round(top * 1.1, 3)
+    at = np.insert(np.arange(horizon), t + 1, t)  # (T + 1,) index t twice
+    now = np.full(horizon + 1, np.nan)
+    now[t], now[t + 1] = 0.0, top
+    data = (x[at], *(v[at] for v in lines), now)
+    series.append({"label": "now", "stroke": COLOURS["step"], "width": 1.5})
     scales: dict[str, uplot.Scale] = {
         "x": {"time": False, "auto": False, "range": (-0.5, horizon - 0.5)},
-        "y": {"auto": False, "range": (0.0, round(top * 1.1, 3))},
+        "y": {"auto": False, "range": (0.0, top)},
     }
-    return tuple(data), tuple(series), scales
+    return data, tuple(series), scales
+
+
+DISTANCE_AXES: tuple[uplot.Axis, ...] = (
+    {"label": "step", "incrs": (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)},
+    {"label": "action distance"},
+)
 
 
 def loss_plot(losses: list[float] | tuple[float, ...], steps: int):
-    """The finetuning loss over gradient steps (grows while the job runs), log scale."""
-    y = np.maximum(np.asarray(losses, np.float64), 1e-9) if len(losses) else np.ones(1)
+    """The finetuning loss over gradient steps (grows while the job runs), on a log10 scale
+    with ticks at whole powers of ten written out (1e-3, not 0)."""
+    y = np.maximum(np.asarray(losses, np.float64), 1e-12) if len(losses) else np.ones(1)
     x = np.arange(len(y), dtype=np.float64)
     series: tuple[uplot.Series, ...] = (
         {"label": "step"},
         {"label": "loss", "stroke": COLOURS["finetuned"], "width": 2},
     )
+    lo, hi = int(np.floor(np.log10(y.min()))), int(np.ceil(np.log10(y.max())))
+    hi = max(hi, lo + 1)
     scales: dict[str, uplot.Scale] = {
         "x": {"time": False, "auto": False, "range": (0.0, float(max(steps - 1, 1)))},
-        "y": {"auto": True, "distr": 3, "log": 10},
+        "y": {"auto": False, "distr": 3, "log": 10, "range": (10.0**lo, 10.0**hi)},
     }
-    return (x, y), series, scales
+    decades = tuple(10.0**k for k in range(lo, hi + 1))
+    axes: tuple[uplot.Axis, ...] = (
+        {"label": "finetuning step"},
+        {"label": "loss", "splits": decades, "values": tuple(f"1e{k}" for k in range(lo, hi + 1))},
+    )
+    return (x, y), series, scales, axes

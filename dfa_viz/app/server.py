@@ -10,9 +10,10 @@ import contextlib
 import http
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import viser
 import websockets.asyncio.server
@@ -116,6 +117,56 @@ def _guarded(guard: PageGuard) -> Iterator[None]:
             websockets.asyncio.server.serve = original
 
 
+def open_server(
+    host: str,
+    port: int | None,
+    chosen: int,
+    note: str,
+    *,
+    label: str,
+    who: str,
+    on_fail: Callable[[], None] = lambda: None,
+) -> tuple[viser.ViserServer, int]:
+    """A viser server that only its own page may drive, on `chosen` (serving_port's choice
+    for `port`), and the port it bound. A port given and taken between the check and the bind
+    is a UserError; `on_fail` runs before any error leaves."""
+    try:
+        with _guarded(PageGuard(host)):
+            server = viser.ViserServer(host=host, port=chosen, label=label, verbose=False)
+    except BaseException:
+        on_fail()
+        raise
+    bound = server.get_port()
+    if chosen and bound != chosen:  # taken between the check and the bind
+        if port is not None:
+            server.stop()
+            on_fail()
+            raise UserError(f"port {port} is busy on {host}; choose another --port")
+        note = moved_note(DEFAULT_PORT, bound)
+    if note:
+        print(f"{who}: {note}", flush=True)
+    return server, bound
+
+
+def track_pages(server: viser.ViserServer, pages: dict, make: Callable[[Any], Any]) -> None:
+    """One page per connected tab: `make(client)` on connect into `pages` (by client id),
+    its `close()` on disconnect."""
+    lock = threading.Lock()
+
+    @server.on_client_connect
+    def _(client: viser.ClientHandle) -> None:
+        page = make(client)
+        with lock:
+            pages[client.client_id] = page
+
+    @server.on_client_disconnect
+    def _(client: viser.ClientHandle) -> None:
+        with lock:
+            page = pages.pop(client.client_id, None)
+        if page is not None:
+            page.close()
+
+
 def start(
     *,
     world: str = "nav2d",
@@ -135,41 +186,15 @@ def start(
     chosen, note = serving_port(host, port)
     if state is None:
         state = open_state(world=world, session=session, out=out, adapt=adapt)
-    try:
-        with _guarded(PageGuard(host)):
-            server = viser.ViserServer(host=host, port=chosen, label="DFA", verbose=False)
-    except BaseException:
-        state.close()
-        raise
-    bound = server.get_port()
-    if chosen and bound != chosen:  # taken between the check and the bind
-        if port is not None:
-            server.stop()
-            state.close()
-            raise UserError(f"port {port} is busy on {host}; choose another --port")
-        note = moved_note(DEFAULT_PORT, bound)
-    if note:
-        print(f"dfa serve: {note}", flush=True)
+    server, bound = open_server(
+        host, port, chosen, note, label="DFA", who="dfa serve", on_fail=state.close
+    )
     server.gui.configure_theme(show_share_button=False, brand_color=(28, 126, 214))
     app = App(server, state, url(host, bound))
     worlds = tuple(n for n in world_names() if not n.endswith(":..."))
     if state.world_name not in worlds:
         worlds = (*worlds, state.world_name)
-    lock = threading.Lock()
-
-    @server.on_client_connect
-    def _(client: viser.ClientHandle) -> None:
-        page = Page(client, state, worlds)
-        with lock:
-            app.pages[client.client_id] = page
-
-    @server.on_client_disconnect
-    def _(client: viser.ClientHandle) -> None:
-        with lock:
-            page = app.pages.pop(client.client_id, None)
-        if page is not None:
-            page.close()
-
+    track_pages(server, app.pages, lambda client: Page(client, state, worlds))
     print(f"dfa serve: the page is at {app.url}", flush=True)
     print(f"dfa serve: session {state.session.folder}", flush=True)
     return app

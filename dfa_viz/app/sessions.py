@@ -154,11 +154,12 @@ class Session:
 
     @classmethod
     def new(cls, root: str | Path, *, world: str) -> Session:
-        """A fresh session under root/<date-time>-<world>/."""
+        """A fresh session under root/<date-time>/ (its tasks may be of any world: each
+        recording's name says its own)."""
         stamp = time.strftime("%Y%m%d-%H%M%S")
         root = Path(root)
         for k in range(1000):
-            folder = root / (f"{stamp}-{world}" + (f"-{k}" if k else ""))
+            folder = root / (stamp + (f"-{k}" if k else ""))
             if not folder.exists():
                 return cls.open(folder, world=world)
         raise SessionError(f"{root}: could not find a free session folder name")

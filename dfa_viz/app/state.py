@@ -102,6 +102,7 @@ class LoopState:
         self.content = 0  # bumps on every committed event (what the recording shows)
         self.recording: Path | None = None
         self._recorded = -1
+        self.sweep = None  # the Sweep tab's last sweep (dfa_viz.sweep.run.PageSweep), unlogged
         self._lock = threading.RLock()
         self._record_lock = threading.Lock()
         self._listeners: dict[int, Listener] = {}
@@ -175,8 +176,8 @@ class LoopState:
             # like `dfa run`'s <world>-<shift>-seed<seed>.rrd, plus the session and the line of
             # this task in its log: loading another task (or this one again) keeps this one
             self.recording = self.out / files.safe_name(
-                f"{event.world}-{event.shift}-seed{event.seed}-{self.session.folder.name}"
-                f"-task{line}.rrd"
+                f"{event.world}-{event.shift}-seed{event.seed}-session-"
+                f"{self.session.folder.name}-task{line}.rrd"
             )
             self._recorded = -1
         elif isinstance(event, E.Judged) and event.failed:
@@ -217,6 +218,7 @@ class LoopState:
                 d.kind if d else "",
                 d.hint if d else "",
                 d.summary() if d else "",
+                d.given() if d else False,
                 d.ready() if d else False,
                 d.problem() if d else "",
                 self.recording,
@@ -268,7 +270,49 @@ class LoopState:
             rec = self.record
         if rec is None:
             return self.pick(self.world_name, "object_ti", 0)
+        shifts = get_world(rec.world).shifts
+        if rec.shift not in shifts:  # a failure the sweep found: the world's first shift
+            return self.pick(rec.world, shifts[0] if shifts else rec.shift, 0)
         return self.pick(rec.world, rec.shift, rec.seed + 1)
+
+    def run_sweep(self, world: str, tasks: int) -> bool:
+        """Sweep every single concept edit of `world`'s policy over `tasks` training tasks
+        (the Sweep tab); the result is kept for the session's tabs, not logged."""
+
+        def job() -> None:
+            from dfa_viz.sweep.run import page_sweep
+
+            w = get_world(world)
+            self.jobs.progress(0.05, f"loading the {world} policy")
+            policy = self.policies.get(w)
+
+            def on_progress(what: str, done: int, total: int) -> None:
+                self.jobs.progress(done / max(total, 1), f"sweeping {what}: {done}/{total}")
+
+            shown = page_sweep(w, policy, tasks, on_progress=on_progress)
+            with self._lock:
+                self.sweep = shown
+            self._notify({"sweep"})
+
+        return self.jobs.start("sweep", job, f"sweeping {tasks} {world} tasks")
+
+    def load_failure(self, world: str, example) -> bool:
+        """Load a failure the sweep found (search.sweep.Example: a training task and one
+        edit) as the task to diagnose."""
+
+        def job() -> None:
+            from search.sweep import failure_task
+
+            w = get_world(world)
+            self.jobs.progress(0.1, f"rolling the {world} policy out on task {example.seed}")
+            policy = self.policies.get(w)
+            task = failure_task(w, example)
+            record = start(w, policy, task, shift=E.SWEEP, seed=example.seed)
+            event = E.TaskLoaded(world, E.SWEEP, example.seed, task.seed, example.edit, example.pos)
+            self._commit(event, record)
+            self._notify({"stage"})
+
+        return self.jobs.start("task", job, f"loading {example.edit} on task {example.seed}")
 
     def judge(self, failed: bool) -> None:
         with self._lock:

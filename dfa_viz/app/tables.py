@@ -1,4 +1,4 @@
-"""The page's words: what to do now, the diagnosis, the Δφ table, the adaptation results."""
+"""The page's words: what to do now, the diagnosis, what changed, the adaptation results."""
 
 from __future__ import annotations
 
@@ -45,18 +45,29 @@ def diagnosis_text(view: View) -> str:
             "is something the concepts do not describe (e.g. a position)."
         )
     n = len(res.counterfactuals)
-    ties = f"; {n - 1} other minimal edit{'s' if n > 2 else ''} tie (choose below)" if n > 1 else ""
-    return (
-        f"**Counterfactual found** (size {res.size}, {len(res.tried)} edits tried{ties}). "
-        "The policy follows your demonstration when the scene is edited like this:"
+    changes = f"{res.size} change{'s' if res.size > 1 else ''}"
+    text = (
+        f"**Counterfactual found** ({len(res.tried)} edits tried). The policy follows your "
+        f"demonstration when the scene is edited like this ({changes}):"
     )
+    if n > 1:
+        other = "another edit" if n == 2 else f"{n - 1} other edits"
+        text += f"  \n{other} as small work{'s' if n == 2 else ''} too: pick one to look at below."
+    if view.world is not None and view.world.view3d is not None:
+        text += "  \nIn 3D: solid = the scene as it was, wireframe = after the edit."
+    return text
 
 
 def edit_table(world: World, scene: Scene, edit: Edit) -> str:
-    """Δφ as a before → after table of the edited concepts."""
-    rows = ["| slot | concept | before | → | after |", "|---|---|---|---|---|"]
-    rows += [f"| {c.slot} | {c.concept} | {c.old} | → | **{c.new}** |" for c in edit.ordered]
+    """What changed: a before → after table of the edited concepts."""
+    rows = ["| object | concept | before → after |", "|---|---|---|"]
+    rows += [f"| {c.slot} | {c.concept} | {c.old} → **{c.new}** |" for c in edit.ordered]
     return "\n".join(rows)
+
+
+def strip(solved: tuple[bool, ...]) -> str:
+    """Per fresh task, solved or not: ✓✓✗✓…"""
+    return "".join("✓" if s else "✗" for s in solved)
 
 
 def results_text(view: View) -> str:
@@ -78,9 +89,10 @@ def results_text(view: View) -> str:
     if ev is not None:
         text += (
             f"  \n**Success on {len(ev.before.shifted)} fresh tasks with the shift: "
-            f"{ev.before.on_shift:.0%} → {ev.after.on_shift:.0%}** (on "
-            f"{len(ev.before.overall)} from all you asked for: {ev.before.on_all:.0%} → "
-            f"{ev.after.on_all:.0%})"
+            f"{ev.before.on_shift:.0%} → {ev.after.on_shift:.0%}**  \n"
+            f"before `{strip(ev.before.shifted)}`  \nafter  `{strip(ev.after.shifted)}`  \n"
+            f"On {len(ev.before.overall)} fresh tasks from everything you want (the training "
+            f"looks too): {ev.before.on_all:.0%} → {ev.after.on_all:.0%}"
         )
     return (
         text + "  \nThe *finetuned* column shows the new policy on this task"

@@ -27,6 +27,8 @@ class View:
     demo_kind: str
     demo_hint: str
     demo_summary: str
+    demo_given: bool
+    """The user has demonstrated something (a click, a key)."""
     demo_ready: bool
     demo_problem: str
     """Why the demonstration given so far cannot be used ("" when it can)."""

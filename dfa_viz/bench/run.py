@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.table import Table
 
 from dfa_viz.bench.search import bench_world
+from dfa_viz.bench.sweep import SWEPT, sweep_rows
 from dfa_viz.bench.timing import machine
 from dfa_viz.configs import BenchArgs
 from policy import base_policy
@@ -63,6 +64,9 @@ def run_bench(args: BenchArgs) -> list[tuple[str, str, str, str]]:
             add(*row)
 
     for name in worlds:
+        if name in SWEPT:
+            for row in sweep_rows(name):
+                add(*row)
         if name == "tabletop":
             from dfa_viz.bench.tabletop import bench_rows, bench_tabletop
 

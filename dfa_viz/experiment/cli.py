@@ -1,9 +1,10 @@
-"""`dfa experiment q2`: the paper's finetuning comparison, one config shared by the CLI and the
-function it runs."""
+"""`dfa experiment q2` (the paper's finetuning comparison) and `dfa experiment explain` (the
+explanations against the planted causes): one config each, shared by the CLI and the function
+it runs."""
 
 from __future__ import annotations
 
-from dfa_viz.configs import Q2Args
+from dfa_viz.configs import ExplainArgs, Q2Args
 
 
 def experiment_q2(args: Q2Args) -> None:
@@ -33,9 +34,30 @@ def experiment_q2(args: Q2Args) -> None:
         ray_address=args.ray_address,
         progress=args.progress,
     )
+    _report(summary, items="runs", done="run")
+
+
+def experiment_explain(args: ExplainArgs) -> None:
+    """Plan, run (skipping finished tasks) and report the explanation benchmark."""
+    from dfa_viz.experiment.explain import ExplainPlan, ExplainSettings, run_explain
+
+    summary = run_explain(
+        ExplainPlan(tuple(args.worlds), tuple(args.shifts), args.tasks),
+        out=args.out,
+        settings=ExplainSettings(tuple(dict.fromkeys(args.methods)), args.max_size),
+        backend=args.backend,
+        workers=args.workers,
+        ray_address=args.ray_address,
+        progress=args.progress,
+    )
+    _report(summary, items="tasks", done="explained")
+
+
+def _report(summary, *, items: str, done: str) -> None:
+    """What an experiment did, in two lines and the files it wrote."""
     print(
-        f"{summary.planned} runs planned: {summary.skipped} already in {summary.out}, "
-        f"{summary.executed} run now in {summary.wall_s:.0f} s"
+        f"{summary.planned} {items} planned: {summary.skipped} already in {summary.out}, "
+        f"{summary.executed} {done} now in {summary.wall_s:.0f} s"
     )
     for path in summary.reports:
         print(f"  {path}")

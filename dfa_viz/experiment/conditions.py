@@ -13,6 +13,7 @@ import numpy as np
 
 from policy.variants import stable_int
 from sim.core import Task, UserConcept, World
+from sim.core.visible import visible_concepts as scene_concepts
 
 CONDITIONS = ("nh_random", "baseline_h", "cf_h", "oracle")
 CONDITION_NAMES = {
@@ -83,8 +84,7 @@ def visible_concepts(world: World, task: Task) -> tuple[UserConcept, ...]:
     """The concepts a person can point at in the test scene: the looks of objects that are
     there, and the presence of any optional object (adding one is always visible). The looks
     of an object that is not in the scene are not something anyone would name."""
-    shown = (uc.in_scene(task.scene) for uc in world.space.user_concepts())
-    return tuple(uc for uc in shown if uc is not None)
+    return scene_concepts(world.space, task.scene)
 
 
 def concept_named(concepts: tuple[UserConcept, ...], name: str) -> UserConcept:

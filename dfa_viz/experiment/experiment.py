@@ -7,11 +7,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from dfa_viz.experiment.backends import BACKENDS, run_specs
+from dfa_viz.backends import BACKENDS, run_all
 from dfa_viz.experiment.conditions import CONDITIONS, PAPER_WORLDS, SHIFT_KINDS
 from dfa_viz.experiment.figures import write_plots, write_rrd
 from dfa_viz.experiment.results import ResultsFolder, write_table
-from dfa_viz.experiment.runner import RunSpec, Settings
+from dfa_viz.experiment.runner import RunSpec, Settings, run_one
 from sim.core import UserError
 
 
@@ -82,6 +82,63 @@ def _warm_base_policies(worlds: Sequence[str]) -> None:
         torch.set_num_threads(threads)
 
 
+def run_resumable(
+    job,
+    specs: Sequence,
+    folder,
+    settings,
+    *,
+    worlds: Sequence[str],
+    describe,
+    unit: str,
+    backend: str,
+    workers: int,
+    ray_address: str | None,
+    progress: bool,
+) -> tuple[int, int, float]:
+    """Run `job(spec, settings)` for every spec whose key is not yet in `folder` (a results
+    folder with `done()` and `append(result)`) on a backend, with a progress bar whose postfix
+    is `describe(result)`: what the q2 experiment and the explanation benchmark share.
+    Returns (skipped, executed, seconds)."""
+    if backend not in BACKENDS:
+        raise UserError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
+    finished = folder.done()
+    todo = [s for s in specs if s.key not in finished]
+    t0 = time.perf_counter()
+    executed = 0
+    if todo:
+        _warm_base_policies(worlds)
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=len(specs),
+            initial=len(specs) - len(todo),
+            desc=f"{unit}s",
+            unit=unit,
+            disable=not progress,
+            smoothing=0.1,
+        )
+
+        def on_result(result) -> None:
+            folder.append(result)
+            bar.set_postfix_str(describe(result), refresh=False)
+            bar.update(1)
+
+        try:
+            executed = run_all(
+                job,
+                todo,
+                settings,
+                backend=backend,
+                workers=workers,
+                on_result=on_result,
+                ray_address=ray_address,
+            )
+        finally:
+            bar.close()
+    return len(specs) - len(todo), executed, time.perf_counter() - t0
+
+
 def run_experiment(
     plan: Plan,
     *,
@@ -93,38 +150,24 @@ def run_experiment(
     progress: bool = True,
 ) -> Summary:
     """Run every planned run not yet in `out`, then write the table, plots and recording."""
-    if backend not in BACKENDS:
-        raise UserError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
     folder = ResultsFolder(out, settings)
     specs = plan.specs()
-    finished = folder.done()
-    todo = [s for s in specs if s.key not in finished]
-    t0 = time.perf_counter()
-    executed = 0
-    if todo:
-        _warm_base_policies(plan.worlds)
-        bar = _progress(len(specs), len(specs) - len(todo), progress)
-
-        def on_result(result: dict[str, object]) -> None:
-            folder.append(result)
-            bar.set_postfix_str(
-                f"{result['world']} {result['shift']} {result['condition']} "
-                f"b={result['budget']} s={result['seed']}: {result['success']}",
-                refresh=False,
-            )
-            bar.update(1)
-
-        try:
-            executed = run_specs(
-                todo,
-                settings,
-                backend=backend,
-                workers=workers,
-                on_result=on_result,
-                ray_address=ray_address,
-            )
-        finally:
-            bar.close()
+    skipped, executed, wall_s = run_resumable(
+        run_one,
+        specs,
+        folder,
+        settings,
+        worlds=plan.worlds,
+        describe=lambda r: (
+            f"{r['world']} {r['shift']} {r['condition']} b={r['budget']} s={r['seed']}: "
+            f"{r['success']}"
+        ),
+        unit="run",
+        backend=backend,
+        workers=workers,
+        ray_address=ray_address,
+        progress=progress,
+    )
     rows = folder.finalise()
     reports: tuple[Path, ...] = ()
     if rows:
@@ -133,19 +176,4 @@ def run_experiment(
             *write_plots(folder.out, rows),
             write_rrd(folder.out, rows),
         )
-    return Summary(
-        folder.out,
-        len(specs),
-        len(specs) - len(todo),
-        executed,
-        time.perf_counter() - t0,
-        reports,
-    )
-
-
-def _progress(total: int, initial: int, enabled: bool):
-    from tqdm import tqdm
-
-    return tqdm(
-        total=total, initial=initial, desc="runs", unit="run", disable=not enabled, smoothing=0.1
-    )
+    return Summary(folder.out, len(specs), skipped, executed, wall_s, reports)

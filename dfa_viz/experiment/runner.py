@@ -279,18 +279,3 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         "cpu_s": round(time.process_time() - cpu0, 3),
         "host": f"{socket.gethostname()}:{os.getpid()}",
     }
-
-
-def init_worker() -> None:
-    """Every run executes with one torch thread (results must not depend on the thread count,
-    and parallelism comes from running runs side by side)."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
-    import torch
-
-    torch.set_num_threads(1)
-
-
-def run_in_worker(spec: RunSpec, settings: Settings) -> dict[str, object]:
-    """The function a backend ships to a worker: one thread, then the run."""
-    init_worker()
-    return run_one(spec, settings)

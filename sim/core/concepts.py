@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,6 +11,7 @@ from sim.core.errors import UserError
 from sim.core.scene import Obj, Scene
 
 PRESENCE = "presence"
+SHORT_LIST = 6  # value lists up to this long are written out in full
 PRESENT, ABSENT = "present", "absent"
 
 
@@ -169,6 +171,26 @@ class ConceptSpace:
         every = self.values(slot, concept)
         allowed = reward.allowed_values(slot, concept)
         return every if allowed is None else tuple(v for v in every if v in allowed)
+
+    def describe(self, slot: str, concept: str, chosen: Sequence[str]) -> str:
+        """Some instantiations of slot.concept in words a person reads at a glance: "all 81
+        colours", "all colours but red, dark red", "present or absent", or the list itself
+        when it is short (at most SHORT_LIST values), else its first few and a count."""
+        every = self.values(slot, concept)
+        picked = [v for v in every if v in set(chosen)]
+        if concept == PRESENCE:
+            return " or ".join(picked) if len(picked) != 1 else f"only {picked[0]}"
+        noun = concept if concept.endswith("s") else f"{concept}s"
+        missing = [v for v in every if v not in set(chosen)]
+        if not missing:
+            return f"all {len(every)} {noun}" if len(every) > 2 else " or ".join(every)
+        if not picked:
+            return f"no {noun}"
+        if len(missing) <= SHORT_LIST < len(picked):
+            return f"all {noun} but {', '.join(missing)}"
+        if len(picked) <= SHORT_LIST:
+            return ", ".join(picked)
+        return f"{len(picked)} of {len(every)} {noun}: {', '.join(picked[:SHORT_LIST])}, …"
 
     def user_concepts(self) -> tuple[UserConcept, ...]:
         """Every concept as a person names it ("goal.colour", "lava.presence"), in the order

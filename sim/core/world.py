@@ -62,6 +62,7 @@ class World(abc.ABC):
         image_extent: (x_left, x_right, y_bottom, y_top) of the rendered frame in the world's
             coordinates, for the click inputs.
         view3d: a 3D scene (sim.core.view3d.View3D), or None.
+        action_names: a name per continuous action dimension for plots (default "action k").
         shifts: the shift kinds `test_task` makes (Benchmark worlds).
     """
 
@@ -80,6 +81,7 @@ class World(abc.ABC):
     idle_action: int = 0
     image_extent: tuple[float, float, float, float] | None = None
     view3d: View3D | None = None
+    action_names: tuple[str, ...] = ()
     shifts: tuple[str, ...] = ()
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
@@ -137,6 +139,12 @@ class World(abc.ABC):
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         """Positions for adding `slot` to the demonstration's scenes without blocking its path
         ([] by default: a variant can then remove the object, not add it)."""
+        return []
+
+    def in_the_way(self, task: Task, slot: str) -> list[tuple[float, ...]]:
+        """Positions where `slot`, added to the task's scene in any look it can take, is in
+        the way of what the task asks while R' stays within reach: where the sweep tries an
+        added object besides the place the scene keeps for it ([] by default: only there)."""
         return []
 
     def make_env(self):

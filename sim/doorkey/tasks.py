@@ -8,6 +8,8 @@ is rejected and drawn again from the same generator.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from sim.core import (
@@ -295,3 +297,35 @@ def placements(task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...
 
 def _present_lava_slots(scene: Scene) -> list[str]:
     return [s for s in LAVA_SLOTS if scene.obj(s).present]
+
+
+def in_the_way(task: Task, slot: str) -> list[tuple[float, ...]]:
+    """Cells for lava `slot` in the way of the expert's path through the task: each cell the
+    agent stands on along it (the start and the objects' cells apart), then the free cells
+    beside the path within DOOR_REACH of the door, where the distractor shifts put lava; only
+    those that leave the task solvable (the expert goes round). Path order, as (col, row)
+    floats; [] when the slot is there already."""
+    assert slot in LAVA_SLOTS, f"only lava slots can be placed; {slot!r} is not one of {LAVA_SLOTS}"
+    scene = task.scene
+    if scene.obj(slot).present:
+        return []
+    st = parse(scene)
+    path = path_cells(st)
+    taken = {st.agent, st.key, st.door_cell, st.goal} | {c for c, _ in st.lava}
+    door = st.door_cell
+    beside = [
+        c
+        for c in interior()
+        if c not in path
+        and _chebyshev(c, door) <= DOOR_REACH
+        and any(c in neighbours(p) for p in path)
+    ]
+    out: list[tuple[float, ...]] = []
+    for cell in dict.fromkeys([*path, *beside]):
+        if cell in taken:
+            continue
+        obj = scene.obj(slot)
+        there = replace(obj, present=True, pos=(float(cell[0]), float(cell[1])))
+        if solvable(parse(scene.with_obj(there))):
+            out.append((float(cell[0]), float(cell[1])))
+    return out

@@ -105,6 +105,9 @@ class DoorKeyWorld(Benchmark):
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return tasks.placements(task, slot, demo)
 
+    def in_the_way(self, task: Task, slot: str) -> list[tuple[float, ...]]:
+        return tasks.in_the_way(task, slot)
+
     def make_env(self):
         from sim.doorkey.env import DoorKeyEnv
 

@@ -41,6 +41,7 @@ class Nav2DWorld(Benchmark):
     lossless_frames = True
     demo_input = "waypoints"
     image_extent = (-R.ARENA, R.ARENA, -R.ARENA, R.ARENA)
+    action_names = ("dx", "dy")
 
     # -- appearance ---------------------------------------------------------------------------
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:

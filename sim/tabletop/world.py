@@ -57,6 +57,7 @@ class TabletopWorld(Benchmark):
     search_max_candidates = 20_000  # ~30 s: "no counterfactual" among the most promising
     demo_input = "pick_place"
     image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
+    action_names = ("pick x (m)", "pick y (m)", "place x (m)", "place y (m)")
 
     def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]

@@ -115,7 +115,8 @@ class UI:
         ys, xs = np.nonzero(np.abs(img - np.array(rgb)).sum(axis=-1) < tol)
         assert len(xs), f"no pixel of colour {rgb} in the 3D view"
         sx, sy = box["width"] / img.shape[1], box["height"] / img.shape[0]
-        return box["x"] + xs.mean() * sx, box["y"] + ys.mean() * sy
+        # the median: the red axis of viser's orientation gizmo must not pull the point away
+        return box["x"] + float(np.median(xs)) * sx, box["y"] + float(np.median(ys)) * sy
 
     @staticmethod
     def frames(page):
@@ -163,3 +164,49 @@ def ui(browser, request, shots):
         for i, page in enumerate(helper.pages):
             page.screenshot(path=shots / f"failure-tab{i}.png")
     helper.close()
+
+
+class ChildServer:
+    """`python -m dfa_viz.cli ARGS --port N` as a child process, so that a test can really
+    crash it (SIGKILL); `url` once it has printed "the page is at URL"."""
+
+    def __init__(self, args: list[str], cwd=None) -> None:
+        import subprocess
+        import sys
+        import threading
+
+        self.lines: list[str] = []
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "dfa_viz.cli", *args, "--port", str(free_port())],
+            cwd=cwd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        self._drainer = threading.Thread(target=self._drain, daemon=True)
+        self._drainer.start()
+        self.url = self._wait_for(r"the page is at (http://127\.0\.0\.1:\d+)")
+
+    def _drain(self) -> None:
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    def _wait_for(self, pattern: str, timeout_s: float = 120.0) -> str:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            for line in self.lines:
+                if m := re.search(pattern, line):
+                    return m.group(1)
+            assert self.proc.poll() is None, "".join(self.lines)
+            time.sleep(0.1)
+        raise AssertionError(f"no {pattern!r} in:\n{''.join(self.lines)}")
+
+    def kill(self) -> None:
+        import signal
+
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGKILL)  # a crash: no clean shutdown
+            self.proc.wait(timeout=30)
+        self._drainer.join(timeout=10)
+        self.proc.stdout.close()

@@ -3,73 +3,19 @@
 from __future__ import annotations
 
 import json
-import os
-import re
-import signal
-import socket
-import subprocess
-import sys
-import threading
-import time
 
 import pytest
+from conftest import ChildServer  # tests/browser/conftest.py
 from playwright.sync_api import expect
 
 pytestmark = pytest.mark.browser
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-class Server:
-    """`python -m dfa_viz.cli serve` as a child process."""
+class Server(ChildServer):
+    """`python -m dfa_viz.cli serve --session SESSION` as a child process."""
 
     def __init__(self, session, cwd) -> None:
-        self.lines: list[str] = []
-        self.proc = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "dfa_viz.cli",
-                "serve",
-                "--port",
-                str(free_port()),
-                "--session",
-                str(session),
-            ],
-            cwd=cwd,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        )
-        self._drainer = threading.Thread(target=self._drain, daemon=True)
-        self._drainer.start()
-        self.url = self._wait_for(r"the page is at (http://127\.0\.0\.1:\d+)")
-
-    def _drain(self) -> None:
-        for line in self.proc.stdout:
-            self.lines.append(line)
-
-    def _wait_for(self, pattern: str, timeout_s: float = 120.0) -> str:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            for line in self.lines:
-                if m := re.search(pattern, line):
-                    return m.group(1)
-            assert self.proc.poll() is None, "".join(self.lines)
-            time.sleep(0.1)
-        raise AssertionError(f"no {pattern!r} in:\n{''.join(self.lines)}")
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGKILL)  # a crash: no clean shutdown
-            self.proc.wait(timeout=30)
-        self._drainer.join(timeout=10)
-        self.proc.stdout.close()
+        super().__init__(["serve", "--session", str(session)], cwd)
 
 
 def test_kill_and_resume_keeps_the_marks(ui, tmp_path, shots):
@@ -82,9 +28,9 @@ def test_kill_and_resume_keeps_the_marks(ui, tmp_path, shots):
         page.get_by_role("button", name="Ask the expert").click()
         ui.wait_for_text(page, "Counterfactual found")
         page.get_by_role("button", name="Task-irrelevant (TI)").click()
-        ui.wait_for_text(page, "acceptable: present, absent")
+        ui.wait_for_text(page, "variants may take: present or absent")
         page.get_by_role("checkbox", name="absent").uncheck()
-        ui.wait_for_text(page, "acceptable: present")  # acknowledged: it is on disk
+        ui.wait_for_text(page, "variants may take: only present")  # acknowledged: it is on disk
         page.screenshot(path=shots / "0-before-kill.png")
     finally:
         first.kill()
@@ -96,7 +42,7 @@ def test_kill_and_resume_keeps_the_marks(ui, tmp_path, shots):
     second = Server(session, tmp_path)
     try:
         page = ui.open(second.url)
-        ui.wait_for_text(page, "acceptable: present")
+        ui.wait_for_text(page, "variants may take: only present")
         expect(page.get_by_text("Counterfactual found")).to_be_visible()
         expect(page.get_by_role("checkbox", name="present")).to_be_checked()
         expect(page.get_by_role("checkbox", name="absent")).not_to_be_checked()

@@ -73,7 +73,7 @@ def test_minigrid_and_an_sb3_agent_by_keys(serve_app, ui, shots):
     expect(page.get_by_role("option", name="object_tr")).to_have_count(0)  # the world's own
     page.get_by_role("option", name="object_ti").click()
     page.get_by_role("button", name="Load task").click()
-    expect(page.get_by_text("object_ti · seed 0")).to_be_visible()
+    ui.wait_for_text(page, "object_ti · seed 0")
     page.get_by_role("button", name="Failed").click()
     expect(page.get_by_role("button", name="pick up")).to_be_visible()
 

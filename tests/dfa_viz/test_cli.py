@@ -73,7 +73,14 @@ def test_recording_reads_back_with_rerun(run_json, nav, nav_policy):
         "/rollouts/demonstration/frame",
         "/rollouts/counterfactual/frame",
         "/rollouts/finetuned/frame",
+        "/action_distance/failed",
         "/action_distance/counterfactual",
+        "/rollouts/failed/action/0",
+        "/rollouts/failed/success",
+        "/augmented/a000/frame",
+        "/charts/loss",
+        "/charts/success",
+        "/task",
         "/edit/delta",
         "/feedback",
         "/finetune/loss",
@@ -102,6 +109,17 @@ def test_recording_reads_back_with_rerun(run_json, nav, nav_policy):
     assert rows["step"] == list(range(20))
     assert np.allclose(got, want, atol=1e-6)
     assert (got < nav.epsilon).all()
+    # the failed rollout's distance too, and it leaves the demonstration (that is the failure)
+    failed = nav.rollout(task, nav_policy)
+    rows = chunks["/action_distance/failed"][0]
+    got = np.array([v[0] for v in rows["Scalars:scalars"]])
+    steps = min(len(failed.actions), len(demo.actions))
+    assert np.allclose(got, np.abs(failed.actions[:steps] - demo.actions[:steps]).sum(axis=1))
+    assert (got > nav.epsilon).any()
+    # a reviewer sees what the recording is without us
+    assert chunks["/__properties"][0]["RecordingInfo:name"] == [["nav2d · object_ti · seed 0"]]
+    props = chunks["/__properties/task"][0]
+    assert (props["world"], props["shift"], props["seed"]) == ([["nav2d"]], [["object_ti"]], [[0]])
 
 
 def test_same_seed_writes_the_same_recording(tmp_path):
@@ -177,7 +195,7 @@ def one_line_error(capsys, *args: str) -> str:
         (["--max-size", "0"], "--max-size must be from 1 to 3 concept changes, not 0"),
         (["--accuracy", "1.5"], "accuracy is a probability in [0, 1], not 1.5"),
         (
-            ["--label", "goal.colour=TI", "goal.colour=TR"],
+            ["--label", "goal.colour=TI", "--label", "goal.colour=TR"],
             "--label goal.colour is given both TI and TR; give one answer",
         ),
     ],

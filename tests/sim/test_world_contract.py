@@ -108,6 +108,9 @@ def test_capabilities_are_declared(world):
         assert world.image_extent is not None and not world.discrete
     assert isinstance(world.lossless_frames, bool) and isinstance(world.search_first_only, bool)
     assert world.view3d is None or isinstance(world.view3d, View3D)
+    assert world.action_names == () or (
+        not world.discrete and len(world.action_names) == world.action_dim
+    )
     assert set(world.shifts) <= set(SHIFTS)
     assert world.benchmark == bool(world.shifts)
     assert len(world.space.slots) == len({s.name for s in world.space.slots})

@@ -1,0 +1,271 @@
+"""`dfa experiment explain`: how well each explanation names the planted cause of a failure.
+
+One job per (world, shift, seed), a pure function of it and the settings (and the committed
+base policy):
+1. The task: the first test task of the seed's stream that the base policy fails
+   (policy.failing_test_task), its failed rollout, and the scripted expert's demonstration.
+2. The ground truth: the planted cause `task.cause`, as a person names it (its user concept,
+   "goal.shape", "lava.presence": every lava tile a distractor shift adds is one answer).
+3. Every explainer ranks the concepts visible in the test scene (sim.core.visible):
+   counterfactual  the search (search.counterfactual_search; search.ranking.concept_ranking)
+   integrated_gradients, occlusion, grad_cam, kernel_shap   captum's maps of the failed
+                   rollout against the demonstration, reduced to the attribution inside each
+                   object's pixels (policy.concept_saliency)
+   random          a seeded random order: the floor
+4. Per explainer one row: where the cause ranks, top-1 and top-3 hits, and whether the first
+   concept belongs to the cause's object (the object-level reading a map can give).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import socket
+import time
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dfa_viz.experiment.experiment import Summary
+
+EXPLAINERS = (
+    "counterfactual",
+    "integrated_gradients",
+    "occlusion",
+    "grad_cam",
+    "kernel_shap",
+    "random",
+)
+EXPLAINER_NAMES = {
+    "counterfactual": "Counterfactual search",
+    "integrated_gradients": "Integrated Gradients",
+    "occlusion": "Occlusion",
+    "grad_cam": "Grad-CAM",
+    "kernel_shap": "KernelSHAP (objects)",
+    "random": "Random",
+}
+SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
+WORLDS = ("nav2d", "doorkey", "tabletop")
+# the columns of tasks.csv, in order; the first four are a row's key
+COLUMNS = (
+    "world",
+    "shift",
+    "seed",
+    "explainer",
+    "task_seed",
+    "cause",
+    "rank",
+    "hit1",
+    "hit3",
+    "object_hit1",
+    "n_concepts",
+    "ranking",
+)
+KEY = COLUMNS[:4]
+TIMING_COLUMNS = (*KEY, "duration_s", "host")
+
+
+@dataclass(frozen=True)
+class ExplainSettings:
+    """What every job of one explanation benchmark shares; a results folder keeps to one set."""
+
+    explainers: tuple[str, ...] = EXPLAINERS
+    """Which explainers rank the concepts."""
+    max_size: int = 2
+    """Largest edit the counterfactual search tries."""
+    saliency: dict = field(default_factory=dict)
+    """policy.saliency.SaliencyConfig fields that differ from its defaults."""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True, order=True)
+class TaskSpec:
+    """One job: the failing test task of `seed` in `world` under `shift`."""
+
+    world: str
+    shift: str
+    seed: int
+
+    @property
+    def key(self) -> tuple[str, str, int]:
+        return (self.world, self.shift, self.seed)
+
+
+@functools.lru_cache(maxsize=3)
+def _policy(world_name: str):
+    from policy import base_policy
+    from sim import get_world
+
+    return base_policy(get_world(world_name))
+
+
+def _rng(spec: TaskSpec, what: str):
+    import numpy as np
+
+    from policy.variants import stable_int
+
+    return np.random.default_rng([spec.seed, stable_int(what, spec.world, spec.shift)])
+
+
+def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) -> dict:
+    """Every explainer on one task: {"rows": tasks.csv rows (strings), "timings": their
+    timings.csv rows (wall seconds of each explainer on this task, what it needs included:
+    the search; the saliency methods' maps plus the object masks they share)}."""
+    from policy import failing_test_task
+    from policy.concept_saliency import prepare, saliency_ranking
+    from policy.saliency import SaliencyConfig
+    from search import SearchConfig, counterfactual_search
+    from search.ranking import concept_ranking
+    from sim import get_world
+    from sim.core.visible import shown_slots, visible_concepts
+
+    world, policy = get_world(spec.world), _policy(spec.world)
+    task, rollout = failing_test_task(world, policy, spec.shift, spec.seed)
+    demo = world.demonstrate(task)
+    assert task.cause is not None, f"{spec.shift} tasks have no planted cause"
+    cause = world.space.user_concept(*task.cause).name
+    visible = visible_concepts(world.space, task.scene)
+    objects = {uc.name: shown_slots(uc, task.scene) for uc in visible}
+    config = SaliencyConfig(**settings.saliency)
+    frames, frames_s = None, 0.0
+    host = f"{socket.gethostname()}:{os.getpid()}"
+    rows, timings = [], []
+    for explainer in settings.explainers:
+        t0 = time.perf_counter()
+        if explainer == "counterfactual":
+            result = counterfactual_search(
+                world,
+                policy,
+                task.scene,
+                demo,
+                config=SearchConfig.for_world(world, max_size=settings.max_size),
+            )
+            ranking = concept_ranking(world.space, task.scene, result)
+        elif explainer == "random":
+            order = _rng(spec, "random-ranking").permutation(len(visible))
+            ranking = tuple(visible[int(i)].name for i in order)
+        else:
+            if frames is None:
+                frames = prepare(world, task, rollout, demo)
+                frames_s = time.perf_counter() - t0
+                t0 = time.perf_counter()
+            seed = int(_rng(spec, explainer).integers(2**31))
+            ranking = saliency_ranking(policy, frames, explainer, seed=seed, config=config).concepts
+            t0 -= frames_s  # the masks are part of every saliency method's cost
+        duration = time.perf_counter() - t0
+        rank = ranking.index(cause) + 1 if cause in ranking else 0
+        row = {
+            "world": spec.world,
+            "shift": spec.shift,
+            "seed": spec.seed,
+            "explainer": explainer,
+            "task_seed": task.seed,
+            "cause": cause,
+            "rank": rank,
+            "hit1": int(rank == 1),
+            "hit3": int(1 <= rank <= 3),
+            "object_hit1": int(bool(ranking) and objects[ranking[0]] == objects[cause]),
+            "n_concepts": len(visible),
+            "ranking": " ".join(ranking),
+        }
+        assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
+        rows.append({k: str(v) for k, v in row.items()})
+        timings.append(
+            {**{k: str(row[k]) for k in KEY}, "duration_s": f"{duration:.4f}", "host": host}
+        )
+    return {"rows": rows, "timings": timings}
+
+
+# -- the benchmark --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ExplainPlan:
+    """Which tasks a benchmark consists of: M seeds of every world and shift."""
+
+    worlds: tuple[str, ...] = WORLDS
+    shifts: tuple[str, ...] = SHIFTS
+    tasks: int = 50
+
+    def check(self) -> ExplainPlan:
+        """Raise a one-line UserError for a world, shift or count that cannot be measured."""
+        from sim import check_world_name, get_world
+        from sim.core import UserError
+
+        if self.tasks < 1:
+            raise UserError(f"--tasks is how many tasks per world and shift, not {self.tasks}")
+        if not self.worlds or not self.shifts:
+            raise UserError("at least one world and one shift are needed")
+        for name in self.worlds:
+            world = get_world(check_world_name(name))
+            if not world.benchmark:
+                raise UserError(f"{name} makes no test tasks: it has no planted causes to find")
+            for shift in self.shifts:
+                if shift not in world.shifts or shift == "other":
+                    planted = [s for s in world.shifts if s != "other"]
+                    raise UserError(
+                        f"{name} has no planted cause for shift {shift!r}; accepted: "
+                        + ", ".join(planted)
+                    )
+        return self
+
+    def specs(self) -> list[TaskSpec]:
+        return [
+            TaskSpec(w, s, seed)
+            for w in dict.fromkeys(self.worlds)
+            for s in dict.fromkeys(self.shifts)
+            for seed in range(self.tasks)
+        ]
+
+
+def run_explain(
+    plan: ExplainPlan,
+    *,
+    out,
+    settings: ExplainSettings = ExplainSettings(),
+    backend: str = "local",
+    workers: int = 2,
+    ray_address: str | None = None,
+    progress: bool = True,
+) -> Summary:
+    """Run every task not yet in `out`, then write the table, the plot and the sorted CSVs."""
+    from dfa_viz.experiment.experiment import Summary, run_resumable
+    from dfa_viz.experiment.explain_figures import write_plot
+    from dfa_viz.experiment.explain_results import ExplainFolder, write_table
+    from sim.core import UserError
+
+    bad = [e for e in settings.explainers if e not in EXPLAINERS]
+    if bad or not settings.explainers:
+        raise UserError(
+            f"unknown explainer {bad[0] if bad else '(none)'!r}; accepted: {', '.join(EXPLAINERS)}"
+        )
+    if settings.max_size < 1:
+        raise UserError(f"--max-size must be at least 1, not {settings.max_size}")
+    plan.check()
+    folder = ExplainFolder(out, settings)
+    specs = plan.specs()
+
+    def describe(result: dict) -> str:
+        first = result["rows"][0]
+        hits = sum(int(r["hit1"]) for r in result["rows"])
+        return f"{first['world']} {first['shift']} s={first['seed']}: {hits} top-1 hits"
+
+    skipped, executed, wall_s = run_resumable(
+        explain_task,
+        specs,
+        folder,
+        settings,
+        worlds=plan.worlds,
+        describe=describe,
+        unit="task",
+        backend=backend,
+        workers=workers,
+        ray_address=ray_address,
+        progress=progress,
+    )
+    rows = folder.finalise()
+    reports: tuple = ()
+    if rows:
+        timings = folder.timings()
+        reports = (write_table(folder.out, rows, timings, settings), write_plot(folder.out, rows))
+    return Summary(folder.out, len(specs), skipped, executed, wall_s, reports)

@@ -1,0 +1,223 @@
+"""`dfa sweep`: the sweep (search.sweep) run on the backends with a progress bar, and its
+outputs written: sweep.csv, heatmap.png, sweep.rrd, and a table in the terminal.
+
+A unit of work travels to a worker as itself (its tasks and, for pairs, its cells); the
+policy travels by name (`SweepJob`): the base policy, or a spec policy.outside.load reads.
+Units are fixed by the tasks alone and their results put in order by unit, so every backend
+and any number of workers give the same result.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from dfa_viz.configs import SweepArgs
+from dfa_viz.sweep.figures import Heatmap
+from search.sweep import (
+    SweepProgress,
+    SweepResult,
+    Unit,
+    UnitResult,
+    run_unit,
+    sweep,
+    sweep_tasks,
+)
+from sim.core import UserError, World, files
+
+
+@dataclass(frozen=True)
+class SweepJob:
+    """What every unit of one sweep shares: the world and the policy, by name."""
+
+    world: str
+    policy: str | None = None
+    """A policy.outside spec; None: the world's base policy."""
+    expert: bool | None = None
+    """Check with the world's expert that R' can still be met (None: where it has one)."""
+
+
+@functools.lru_cache(maxsize=2)
+def _policy(world: str, spec: str | None):
+    from policy import base_policy
+    from policy.outside import load
+    from sim import get_world
+
+    w = get_world(world)
+    policy = load(spec, w) if spec is not None else base_policy(w)
+    policy.fits(w)
+    return policy
+
+
+def run_unit_job(unit: Unit, job: SweepJob) -> UnitResult:
+    """One unit on a worker (the backends' job function)."""
+    from sim import get_world
+
+    return run_unit(get_world(job.world), _policy(job.world, job.policy), unit, expert=job.expert)
+
+
+def backend_runner(
+    job: SweepJob,
+    *,
+    backend: str = "local",
+    workers: int = 1,
+    ray_address: str | None = None,
+    on_unit: Callable[[str, UnitResult], None] | None = None,
+) -> Callable[[Sequence[Unit]], list[UnitResult]]:
+    """A search.sweep Runner on a backend (one worker: here, with one torch thread, as in a
+    worker); on_unit(what, result) as each unit finishes, what being "singles" or "pairs"."""
+    from dfa_viz.backends import run_all
+
+    def runner(units: Sequence[Unit]) -> list[UnitResult]:
+        done: list[UnitResult] = []
+
+        def on_result(result: UnitResult) -> None:
+            done.append(result)
+            if on_unit is not None:
+                on_unit("pairs" if units[result.unit].pairs else "singles", result)
+
+        run_all(
+            run_unit_job,
+            list(units),
+            job,
+            backend=backend,
+            workers=workers,
+            on_result=on_result,
+            ray_address=ray_address,
+            in_process=True,
+        )
+        return sorted(done, key=lambda r: r.unit)
+
+    return runner
+
+
+@dataclass(frozen=True)
+class SweepOutput:
+    result: SweepResult
+    out: Path
+    csv: Path
+    heatmap: Path
+    recording: Path
+    wall_s: float
+    """The sweep itself (rollouts on the backend), outputs apart."""
+
+
+def out_folder(args: SweepArgs) -> Path:
+    """--out, or recordings/sweep/<world>."""
+    out = (
+        args.out
+        if args.out is not None
+        else Path("recordings") / "sweep" / files.safe_name(args.world)
+    )
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file; give a folder for the sweep's files")
+    return out
+
+
+def check(args: SweepArgs, world: World) -> None:
+    """Bad settings: one line each."""
+    if args.tasks < 1:
+        raise UserError(f"--tasks is how many tasks to sweep, at least 1, not {args.tasks}")
+    if args.seed < 0:
+        raise UserError(f"--seed must not be negative, got {args.seed}")
+    bad = [s for s in args.sizes if s not in (1, 2)]
+    if bad or not args.sizes:
+        raise UserError(f"--sizes takes 1 and 2 (single edits, pairs), not {bad or '(none)'}")
+    if args.worst < 0:
+        raise UserError(f"--worst must not be negative, got {args.worst}")
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, not {args.workers}")
+
+
+def run_sweep(args: SweepArgs) -> SweepOutput:
+    """Sweep, then write OUT/sweep.csv, OUT/heatmap.png and OUT/sweep.rrd (each atomically)."""
+    from sim import get_world
+
+    world = get_world(args.world)
+    check(args, world)
+    out = out_folder(args)
+    policy = _policy(world.name, args.policy)  # a bad spec: one line, before any work
+    tasks = sweep_tasks(world, args.tasks, args.seed)
+    name = args.policy or "base policy"
+    job = SweepJob(world.name, args.policy)
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=0, desc="sweep", unit="unit", disable=not args.progress, leave=False)
+
+    def on_unit(what: str, result: UnitResult) -> None:
+        bar.set_postfix_str(f"{what}: {result.rollouts} rollouts", refresh=False)
+        bar.update(1)
+
+    def counted(units: Sequence[Unit]) -> list[UnitResult]:
+        bar.total += len(units)
+        bar.refresh()
+        return inner(units)
+
+    inner = backend_runner(
+        job,
+        backend=args.backend,
+        workers=args.workers,
+        ray_address=args.ray_address,
+        on_unit=on_unit,
+    )
+    t0 = time.perf_counter()
+    try:
+        result = sweep(
+            world,
+            policy,
+            tasks,
+            sizes=tuple(sorted(set(args.sizes))),
+            pair_cells=args.pair_cells,
+            policy_name=name,
+            runner=counted,
+        )
+    finally:
+        bar.close()
+    wall_s = time.perf_counter() - t0
+
+    from dfa_viz.sweep.figures import heatmap, write_png
+    from dfa_viz.sweep.recording import write_sweep_recording
+    from dfa_viz.sweep.tables import write_csv
+
+    out.mkdir(parents=True, exist_ok=True)
+    picture = heatmap(world.space, result)
+    csv = write_csv(out / "sweep.csv", result)
+    png = write_png(out / "heatmap.png", picture.image)
+    rrd = write_sweep_recording(
+        out / "sweep.rrd", world, policy, result, heatmap=picture, worst=args.worst
+    )
+    return SweepOutput(result, out, csv, png, rrd, wall_s)
+
+
+PAGE_MAX_TASKS = 500
+
+
+@dataclass(frozen=True)
+class PageSweep:
+    """A sweep as the page shows it: its world, result and heatmap."""
+
+    world: str
+    result: SweepResult
+    heatmap: Heatmap
+
+
+def page_sweep(
+    world: World, policy, tasks: int, *, on_progress: SweepProgress | None = None
+) -> PageSweep:
+    """The Sweep tab's sweep: single edits over `tasks` training tasks, here."""
+    if not 1 <= tasks <= PAGE_MAX_TASKS:
+        raise UserError(f"sweep from 1 to {PAGE_MAX_TASKS} tasks, not {tasks}")
+    from dfa_viz.sweep.figures import heatmap
+
+    result = sweep(
+        world,
+        policy,
+        sweep_tasks(world, tasks),
+        policy_name=policy.source or "base policy",
+        on_progress=on_progress,
+    )
+    return PageSweep(world.name, result, heatmap(world.space, result))

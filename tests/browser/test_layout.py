@@ -1,0 +1,87 @@
+"""Layout facts a first-time user depends on, at the window sizes people use: the
+demonstration image is whole and clickable between the panels, a click that misses it says
+so, and the active stage's next action is on screen after every stage."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from PIL import Image
+from playwright.sync_api import expect
+
+pytestmark = pytest.mark.browser
+
+GOAL_RED = (230, 40, 40)  # sim.nav2d.render.COLOURS["red"]
+SIZES = [(1280, 800), (1920, 1080)]
+
+
+def _in_viewport(page, locator) -> bool:
+    box = locator.bounding_box()
+    size = page.viewport_size
+    return (
+        box is not None
+        and box["x"] >= 0
+        and box["y"] >= 0
+        and box["x"] + box["width"] <= size["width"]
+        and box["y"] + box["height"] <= size["height"]
+    )
+
+
+def _image_box(page) -> tuple[float, float, float, float]:
+    """Page box of the nav2d task image (its black floor) in a screenshot of the whole page."""
+    img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    black = (img.sum(axis=-1) < 30).astype(np.uint8)
+    rows, cols = black.sum(axis=1), black.sum(axis=0)
+    ys = np.flatnonzero(rows > 0.5 * rows.max())
+    xs = np.flatnonzero(cols > 0.5 * cols.max())
+    return float(xs.min()), float(ys.min()), float(xs.max() + 1), float(ys.max() + 1)
+
+
+@pytest.mark.parametrize(("width", "height"), SIZES)
+def test_the_demonstration_image_is_whole_and_clickable(serve_app, ui, shots, width, height):
+    app = serve_app("nav2d")
+    page = ui.open(app.url)
+    page.set_viewport_size({"width": width, "height": height})
+    page.get_by_role("button", name="Load task").click()
+    page.get_by_role("button", name="Failed").click()
+    next_action = page.get_by_role("button", name="Continue: the expert shows it")
+    expect(next_action).to_be_visible()
+    assert _in_viewport(page, next_action)
+    page.wait_for_timeout(1000)  # the compare panel folds away
+    page.screenshot(path=shots / f"demonstrate-{width}x{height}.png")
+
+    x0, y0, x1, y1 = _image_box(page)
+    side = min(x1 - x0, y1 - y0)
+    assert side >= 250, (x0, y0, x1, y1)  # big enough to aim at
+    assert abs((x1 - x0) - (y1 - y0)) <= 4, "the square image is cut on one side"
+    panels = page.locator(".mantine-Paper-root").all()  # the control panel's edge
+    left_panel = max(
+        (b["x"] + b["width"] for b in (p.bounding_box() for p in panels) if b and b["x"] < 10),
+        default=0,
+    )
+    assert x0 >= left_panel - 1 and x1 <= width and y1 <= height
+
+    x, y = ui.canvas_point(page, GOAL_RED)
+    page.mouse.click(x, y)
+    ui.wait_for_text(page, "1 waypoint, ends on the goal")
+    use = page.get_by_role("button", name="Continue: search with my demonstration")
+    expect(use).to_be_enabled()
+    assert _in_viewport(page, use)
+
+    page.mouse.click(x0 - 20 if x0 > 420 else x1 + 20, (y0 + y1) / 2)  # just off the image
+    ui.wait_for_text(page, "that click missed the image")
+    use.click()
+    ui.wait_for_text(page, "Counterfactual found")
+    page.get_by_role("button", name="Task-irrelevant (TI)").click()
+    finetune = page.get_by_role("button", name="Continue: make variants and finetune")
+    expect(finetune).to_be_enabled()
+    assert _in_viewport(page, finetune)
+    expect(page.get_by_role("button", name="✔ Task-irrelevant (TI)")).to_be_visible()
+    finetune.click()
+    ui.wait_for_text(page, "fresh tasks with the shift", timeout_s=240)
+    another = page.get_by_role("button", name="Continue: another task")
+    expect(another).to_be_visible()
+    assert _in_viewport(page, another)
+    page.screenshot(path=shots / f"adapted-{width}x{height}.png")

@@ -1,0 +1,117 @@
+"""`dfa experiment explain`: the explainers against the planted causes, end to end and in parts."""
+
+import csv
+
+import pytest
+
+from dfa_viz.cli import main
+from dfa_viz.experiment.explain import (
+    COLUMNS,
+    EXPLAINERS,
+    ExplainPlan,
+    ExplainSettings,
+    TaskSpec,
+    explain_task,
+    run_explain,
+)
+from dfa_viz.experiment.explain_figures import write_plot
+from dfa_viz.experiment.explain_results import ExplainFolder, cell, markdown_table
+from sim.core import UserError
+
+PLAN = ExplainPlan(worlds=("nav2d",), shifts=("object_ti", "distractor_ti"), tasks=2)
+FAST = ("counterfactual", "integrated_gradients", "grad_cam", "kernel_shap", "random")
+SETTINGS = ExplainSettings(explainers=FAST, saliency={"ig_steps": 8, "shap_samples": 16})
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def benchmark(tmp_path_factory):
+    out = tmp_path_factory.mktemp("explain")
+    summary = run_explain(PLAN, out=out, settings=SETTINGS, workers=1, progress=False)
+    return summary
+
+
+def test_a_tiny_benchmark_writes_the_table_the_plot_and_every_row(benchmark):
+    out = benchmark.out
+    assert (benchmark.planned, benchmark.skipped, benchmark.executed) == (4, 0, 4)
+    rows = _rows(out / "tasks.csv")
+    assert len(rows) == 4 * len(FAST) and tuple(rows[0]) == COLUMNS
+    assert {r["cause"] for r in rows} == {"goal.colour", "goal.shape", "distractor.presence"}
+    for r in rows:
+        ranked = r["ranking"].split()
+        assert len(ranked) == int(r["n_concepts"]) and r["cause"] in ranked
+        assert int(r["rank"]) == ranked.index(r["cause"]) + 1
+    cf = [r for r in rows if r["explainer"] == "counterfactual"]
+    assert all(r["hit1"] == "1" for r in cf)  # nav2d's planted causes are all found
+    table = (out / "table.md").read_text()
+    assert "Top-1 hits" in table and "97 / 28" in table and "Time per task" in table
+    assert (out / "hits.png").read_bytes()[:4] == b"\x89PNG"
+    assert len(_rows(out / "timings.csv")) == len(rows)
+
+
+def test_it_resumes_and_a_cut_line_is_run_again(benchmark, tmp_path):
+    out = tmp_path / "again"
+    out.mkdir()
+    for name in ("config.json", "tasks.csv", "timings.csv"):
+        (out / name).write_bytes((benchmark.out / name).read_bytes())
+    text = (out / "tasks.csv").read_text()
+    (out / "tasks.csv").write_text(text[: text.rstrip("\n").rfind("\n") + 1] + "nav2d,dis")
+    again = run_explain(PLAN, out=out, settings=SETTINGS, workers=1, progress=False)
+    assert (again.skipped, again.executed) == (3, 1)
+    assert _rows(out / "tasks.csv") == _rows(benchmark.out / "tasks.csv")  # the same rows
+
+
+def test_a_task_is_a_pure_function_of_its_spec():
+    spec = TaskSpec("nav2d", "distractor_tr", 1)
+    settings = ExplainSettings(explainers=("counterfactual", "kernel_shap", "random"))
+    assert explain_task(spec, settings)["rows"] == explain_task(spec, settings)["rows"]
+
+
+def test_other_settings_do_not_mix_into_a_folder(benchmark):
+    with pytest.raises(UserError, match="another --out"):
+        ExplainFolder(benchmark.out, ExplainSettings(explainers=("random",)))
+
+
+def test_rates_are_written_with_wilson_intervals():
+    assert cell(47, 50) == "94 (84–98)"
+    assert cell(0, 50) == "0 (0–7)"
+    assert cell(0, 0) == "—"
+    row = dict.fromkeys(COLUMNS, "0") | {"world": "nav2d", "shift": "object_ti"}
+    text = markdown_table([row | {"explainer": "random"}], [], ExplainSettings())
+    assert "| nav2d | object_ti | 0 (0–79) | 97 / 28 |" in text
+
+
+def test_the_plot_draws_rates_of_none_and_of_all(tmp_path):
+    row = dict.fromkeys(COLUMNS, "0") | {"world": "doorkey", "shift": "distractor_tr"}
+    rows = [row | {"explainer": "kernel_shap", "seed": str(s)} for s in range(50)]
+    hit = {"hit1": "1", "hit3": "1", "object_hit1": "1"}
+    rows += [row | hit | {"explainer": "counterfactual", "seed": str(s)} for s in range(50)]
+    assert write_plot(tmp_path, rows).read_bytes()[:4] == b"\x89PNG"  # 0 of 50, 50 of 50
+    table = markdown_table(rows, [], ExplainSettings())
+    assert "| doorkey | distractor_tr | 100 (93–100) | 0 (0–7) | 88 / 32 |" in table
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--tasks", "0"], "--tasks"),
+        (["--method", "lrp"], "unknown explainer 'lrp'"),
+        (["--shift", "other"], "no planted cause for shift 'other'"),
+        (["--world", "atlantis"], "unknown world 'atlantis'"),
+        (["--max-size", "0"], "--max-size"),
+    ],
+)
+def test_bad_flags_are_one_line_and_exit_2(tmp_path, capsys, args, message):
+    assert main(["experiment", "explain", *args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+
+
+def test_every_explainer_has_a_name_in_the_cli_defaults():
+    from dfa_viz.configs import ExplainArgs
+
+    assert ExplainArgs().methods == EXPLAINERS
