@@ -10,6 +10,8 @@ session, and the recording is one `dfa run` wrote, served by `rerun --web-viewer
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
 import subprocess
 import sys
@@ -160,6 +162,7 @@ def recording_shots(browser, args: Args, tmp: Path) -> list[Path]:
             ],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,  # `rerun` starts the viewer as a child: stop them together
         )
         try:
             time.sleep(4.0)
@@ -170,7 +173,7 @@ def recording_shots(browser, args: Args, tmp: Path) -> list[Path]:
             shots.append(_shot(page, args.out / f"recording-{world}.png"))
             page.close()
         finally:
-            viewer.terminate()
+            os.killpg(viewer.pid, signal.SIGTERM)
             viewer.wait()
     return shots
 

@@ -53,8 +53,12 @@ class Page:
             shifts = shifts_of(state.world_name)
             self.shift = gui.add_dropdown("shift", shifts, initial_value=default_shift(shifts))
             self.seed = gui.add_number("seed", 0, min=0, step=1)
-            self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY)
-            self.next = gui.add_button("Next task", icon=viser.Icon.PLAYER_TRACK_NEXT)
+            # disabled until their callbacks are attached (on_change enables them): a click
+            # on a loaded machine while the page is still being built would be dropped
+            self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY, disabled=True)
+            self.next = gui.add_button(
+                "Next task", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True
+            )
 
         self.judge_folder = gui.add_folder("2 · Judge", visible=False)
         with self.judge_folder:

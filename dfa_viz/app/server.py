@@ -242,7 +242,8 @@ def demo(args: DemoArgs, *, block: bool = True) -> App:
     return app
 
 
-def _block(app: App) -> None:
+def _block(app: App, *, stopped: str | None = None) -> None:
+    """Serve until Ctrl-C, then stop and print `stopped` (default: where the session is)."""
     try:
         while True:
             time.sleep(3600)
@@ -250,4 +251,7 @@ def _block(app: App) -> None:
         pass
     finally:
         app.stop()
-        print(f"dfa serve: stopped; the session is saved in {app.state.session.folder}", flush=True)
+        print(
+            stopped or f"dfa serve: stopped; the session is saved in {app.state.session.folder}",
+            flush=True,
+        )

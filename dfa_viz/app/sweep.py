@@ -54,12 +54,12 @@ class SweepTab:
             gui.add_markdown(INTRO)
             self.tasks = gui.add_number("tasks", DEFAULT_TASKS, min=1, max=500, step=1)
             self.run = gui.add_button("Run sweep", icon=viser.Icon.PLAYER_PLAY)
+            self.run.on_click(self._on_run)
             self.pick = gui.add_checkbox(PICK, False, visible=False)
             self.summary = gui.add_markdown("")
             self.image = gui.add_image(
                 np.full((8, 8, 3), 255, np.uint8), label="heatmap", format="png", visible=False
             )
-        self.run.on_click(self._on_run)
         self.pick.on_update(lambda _: self._show_plane())
         client.scene.on_click()(self._on_click)
 

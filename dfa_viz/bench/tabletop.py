@@ -1,24 +1,25 @@
 """The tabletop search at scale, timed here: every single edit, a size-2 search to its first
-valid edit, and a naive loop that rebuilds the MuJoCo scene and renderer per candidate.
+valid edit, a naive loop (per candidate the edit made in place, one MuJoCo render, a batch-1
+forward), and (dfa_viz.bench.compositing) every edit up to size 2 on an `other` task against
+the forward-pass bound, with composited and with MuJoCo frames.
 
-Targets on 2 cores: all single edits <= 2 s; size 2 to the first valid edit <= 30 s; the batched
-search >= 50x the naive loop per candidate.
+Targets on 2 cores: all single edits <= 2 s; size 2 to the first valid edit <= 30 s; every edit
+up to size 2 on `other` <= 2 s and within 2x of the bound.
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from dfa_viz.bench.compositing import bench_other, compositing_rows, naive_candidate
 from dfa_viz.bench.timing import best_of
-from policy import Policy, base_policy, failing_test_task
+from policy import base_policy, failing_test_task
 from search import SearchConfig, counterfactual_search, rollout_lockstep, singles
 from sim import get_world
-from sim.core import Edit, Scene, Task, Trajectory
+from sim.core import Task
 
-TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0, "ratio": 50.0}
-NAIVE_SAMPLE = 5  # naive candidates timed; the per-candidate time is extrapolated from them
+TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0}
+NAIVE_SAMPLE = 50  # naive candidates timed; the per-candidate time is extrapolated from them
 
 
 def double_shift_task(world, seed: int = 0) -> Task:
@@ -37,21 +38,6 @@ def double_shift_task(world, seed: int = 0) -> Task:
     return Task(TK.WORLD, scene, TK.train_reward(), "object_tr", seed, ("object", "colour"))
 
 
-def naive_candidate(world, policy: Policy, scene: Scene, demo: Trajectory, edit: Edit) -> bool:
-    """One candidate the naive way: a fresh compiled model and renderer, one render, a batch-1
-    forward. True when the edit is valid (horizon 1: one compared step)."""
-    from sim.tabletop.model import Table
-    from sim.tabletop.render import TopCamera
-
-    camera = TopCamera(Table())
-    try:
-        frame = camera.render_batch([world.apply(scene, edit)])  # (1, 80, 80, 3)
-    finally:
-        camera.close()
-    out = policy.outputs(frame)  # (1, 4)
-    return float(np.abs(out[0] - demo.actions[0]).sum()) < world.epsilon
-
-
 def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) -> dict:
     """Time the tabletop search; returns the figures (seconds unless the name says ms).
 
@@ -59,12 +45,12 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         rolled out in lockstep (batched renders and forward passes).
     pairs_first_valid_s: counterfactual_search with the world's config (first_only) on a
         planted double shift, to its first valid edit (singles and pairs included).
-    naive_per_candidate_s: a fresh TabletopWorld model + renderer per candidate, one render and
-        a batch-1 forward; measured on NAIVE_SAMPLE candidates and extrapolated.
+    naive_per_candidate_s: per candidate the edit made in place, one MuJoCo render and a
+        batch-1 forward; measured on NAIVE_SAMPLE candidates and extrapolated.
     ratio: naive per candidate / batched per candidate (over the singles).
     edit_render_ms: apply + render per edited scene in the batched path.
-    no_counterfactual_s (when `exhaustive`): the same search on a failing `other` task, where
-        no edit is valid and every edit of up to 2 changes is tried (timed once).
+    other (when `exhaustive`): dfa_viz.bench.compositing.bench_other's figures: every edit of
+        up to 2 changes on a failing `other` task, composited and MuJoCo, against the bound.
     """
     world = get_world("tabletop")
     policy = base_policy(world)
@@ -104,22 +90,21 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
     )
 
     sample = [edits[i] for i in np.linspace(0, len(edits) - 1, NAIVE_SAMPLE).astype(int)]
-    naive_candidate(world, policy, task.scene, demo, sample[0])  # warm: mesh caches
-    t0 = time.perf_counter()
-    naive_valid = [naive_candidate(world, policy, task.scene, demo, e) for e in sample]
-    naive_per = (time.perf_counter() - t0) / len(sample)
+    world.compositing = False  # the naive loop renders with MuJoCo
+    try:
+        naive_candidate(world, policy, task.scene, demo, sample[0])  # warm: batch-1 kernels
+        naive_s, naive_valid = best_of(
+            lambda: [naive_candidate(world, policy, task.scene, demo, e) for e in sample], repeats
+        )
+        naive_per = naive_s / len(sample)
+    finally:
+        world.compositing = True
     batched = {c.edit: c.valid for c in cands}
     assert naive_valid == [batched[e] for e in sample], "naive and batched candidates disagree"
     batched_per = singles_s / len(edits)
     figures: dict = {}
     if exhaustive:
-        other, _ = failing_test_task(world, policy, "other", seed)
-        other_demo = world.demonstrate(other)
-        t0 = time.perf_counter()
-        res = counterfactual_search(world, policy, other.scene, other_demo, config=config)
-        figures["no_counterfactual_s"] = time.perf_counter() - t0
-        figures["no_counterfactual_tried"] = len(res.tried)
-        assert not res.found, res.summary()
+        figures["other"] = bench_other(world, policy, repeats=repeats, seed=seed)
     return {
         **figures,
         "singles": len(edits),
@@ -136,7 +121,7 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         "ratio": naive_per / batched_per,
         "note": (
             f"naive time measured on {len(sample)} candidates and extrapolated per candidate; "
-            f"best of {repeats} for the batched figures"
+            f"best of {repeats} for every figure"
         ),
     }
 
@@ -159,24 +144,17 @@ def bench_rows(r: dict) -> list[tuple[str, str, str, bool | None]]:
             r["pairs_first_valid_s"] <= TARGETS["pairs_first_valid_s"],
         ),
         (
-            f"batched ({r['batched_per_candidate_s'] * 1e3:.2f} ms per candidate) vs naive "
-            f"rebuild of model + renderer ({r['naive_per_candidate_s'] * 1e3:.0f} ms per "
-            f"candidate, {r['naive_sampled']} timed and extrapolated)",
+            f"batched ({r['batched_per_candidate_s'] * 1e3:.2f} ms per candidate) vs naive: "
+            f"in-place edit, one MuJoCo render, a batch-1 forward "
+            f"({r['naive_per_candidate_s'] * 1e3:.2f} ms per candidate, {r['naive_sampled']} "
+            "timed and extrapolated)",
             f"{r['ratio']:.0f}x",
-            f">= {TARGETS['ratio']:.0f}x",
-            r["ratio"] >= TARGETS["ratio"],
+            "",
+            None,
         ),
     ]
-    if "no_counterfactual_s" in r:
-        rows.append(
-            (
-                f"no counterfactual: all {r['no_counterfactual_tried']} edits of up to 2 "
-                "changes on an `other` task",
-                f"{r['no_counterfactual_s']:.1f} s",
-                "",
-                None,
-            )
-        )
+    if "other" in r:
+        rows += compositing_rows(r["other"])
     return rows
 
 
@@ -188,15 +166,12 @@ def format_tabletop(r: dict) -> str:
         f"tabletop: size-2 search to its first valid edit in {r['pairs_first_valid_s']:.2f} s "
         f"(target <= {TARGETS['pairs_first_valid_s']:.0f} s): {r['pairs_edit']} "
         f"(pair #{r['pairs_rank_of_first_valid']} of those tried in prior order)",
-        f"tabletop: naive {r['naive_per_candidate_s'] * 1e3:.0f} ms per candidate vs batched "
-        f"{r['batched_per_candidate_s'] * 1e3:.2f} ms: {r['ratio']:.0f}x "
-        f"(target >= {TARGETS['ratio']:.0f}x); {r['note']}",
+        f"tabletop: naive (in place) {r['naive_per_candidate_s'] * 1e3:.2f} ms per candidate vs "
+        f"batched {r['batched_per_candidate_s'] * 1e3:.2f} ms: {r['ratio']:.0f}x; {r['note']}",
     ]
-    if "no_counterfactual_s" in r:
-        lines.append(
-            f"tabletop: no counterfactual (an `other` task): {r['no_counterfactual_tried']} edits "
-            f"of up to 2 changes tried in {r['no_counterfactual_s']:.1f} s"
-        )
+    if "other" in r:
+        rows = compositing_rows(r["other"])
+        lines += [f"tabletop: {what}: {value}" for what, value, _, _ in rows]
     return "\n".join(lines)
 
 

@@ -14,8 +14,8 @@ Success   the object's centre within 0.10 m of the goal's after settling, no dis
 Scene: Obj.pos is the object's pose on the table, (x, y, z, qw, qx, qy, qz) in metres, z = 0
 resting on the table top; it is not part of Phi. agent = (steps taken,). Files: concepts.py,
 catalogue.py, shapes.py, meshes.py, colours.py, textures.py, model.py (the MuJoCo model),
-render.py, physics.py (dynamics), pose.py, view3d.py, tasks.py (layouts, shifts, the expert's
-targets), env.py.
+render.py, composite.py (frames from cached top views), physics.py (dynamics), pose.py,
+view3d.py, tasks.py (layouts, shifts, the expert's targets), env.py.
 """
 
 from __future__ import annotations
@@ -42,6 +42,8 @@ class TabletopWorld(Benchmark):
     """One primitive per episode: action float32 (4,) = (pick_x, pick_y, place_x, place_y) m.
 
     colours: the colour concept's instantiations (any of sim.tabletop.colours.ALL_COLOURS).
+    compositing: frames composited from cached top views wherever that gives MuJoCo's own
+    pixels (sim.tabletop.composite), MuJoCo for every other scene; False: MuJoCo for all.
     MuJoCo is loaded on the first render or step; one model and one GL context serve every
     scene, guarded by a lock (the model is edited in place per scene).
     """
@@ -59,7 +61,9 @@ class TabletopWorld(Benchmark):
     image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
     action_names = ("pick x (m)", "pick y (m)", "place x (m)", "place y (m)")
 
-    def __init__(self, colours: Sequence[str] = DEFAULT_COLOURS) -> None:
+    def __init__(
+        self, colours: Sequence[str] = DEFAULT_COLOURS, *, compositing: bool = True
+    ) -> None:
         unknown = [c for c in colours if c not in ALL_COLOURS]
         if unknown:
             raise UserError(f"unknown colours {unknown}; accepted: {', '.join(ALL_COLOURS)}")
@@ -72,6 +76,8 @@ class TabletopWorld(Benchmark):
         self.space = TK.space(self.colours)
         self._lock = threading.RLock()
         self._sim = None  # (Table, TopCamera, PickPlace), built on first use
+        self.compositing = compositing
+        self._compositor = None  # sim.tabletop.composite.Compositor, built on first render
         from sim.tabletop.view3d import TabletopView3D
 
         self.view3d = TabletopView3D(self)
@@ -92,7 +98,14 @@ class TabletopWorld(Benchmark):
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
         """uint8 (B, 80, 80, 3), the top camera's view of each scene."""
         with self._lock:
-            return self._parts()[1].render_batch(scenes)
+            camera = self._parts()[1]
+            if not self.compositing:
+                return camera.render_batch(scenes)
+            if self._compositor is None:
+                from sim.tabletop.composite import Compositor
+
+                self._compositor = Compositor(camera.render_batch, TK.make_scene())
+            return self._compositor.render_batch(scenes)
 
     # -- dynamics -----------------------------------------------------------------------------
     def step_batch(self, scenes: Sequence[Scene], actions: np.ndarray) -> list[Scene]:

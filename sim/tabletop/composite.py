@@ -1,0 +1,271 @@
+"""Tabletop frames composited from cached top views, exact where a scene allows it.
+
+The camera is orthographic and looks straight down, with shadows, reflections and fog off and
+one headlight: an object's pixels depend on its shape, its appearance and where it stands, and
+on nothing else in the scene. So a frame whose objects stand apart is the bare table with each
+object's top view pasted on it. Two facts make the cache small:
+
+- every slot has the same meshes and materials, so a top view belongs to (shape, appearance),
+  not to a slot;
+- at 100 px per metre, an upright object moved by a whole number of pixels (every area centre:
+  0.23 m = 23 px) is drawn by the same pixels moved by the same amount, so one view serves every
+  upright pose on the pixel grid.
+
+A view is drawn once by MuJoCo, four at a time (one per quadrant of a frame, each slot holding
+one), and kept in a cache bounded in bytes, least recently used out first. A scene is composited
+when every present object stands upright on the pixel grid and no two footprints, each grown by
+one pixel, meet: then no pixel mixes two objects (the anti-aliased edge of a view is its mix
+with the table, which the table frame reproduces) and the frame is MuJoCo's own, pixel for
+pixel. Any other scene (objects overlapping, stacked, tilted or carried, or off the grid) is
+drawn by MuJoCo, through the same `draw`.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.core import Obj, Scene
+from sim.tabletop.tasks import AREAS, VIEW_HALF_M, WORLD, pose
+
+SLOTS = ("object", "goal", "distractor0", "distractor1")
+QUADRANTS = ("top-left", "top-right", "bottom-left", "bottom-right")  # one slot each
+CACHE_BYTES = 32 * 2**20  # all 29 x 81 views of the default appearances: about 3 MiB
+GRID_TOL_PX = 1e-6  # a coordinate this close to a whole pixel is on the grid
+Draw = Callable[[Sequence[Scene]], np.ndarray]  # scenes -> uint8 (B, H, W, 3), MuJoCo's
+Key = tuple[str, str]  # (shape, appearance)
+
+
+@dataclass(frozen=True)
+class TopView:
+    """One object's pixels seen from above: those that differ from the bare table.
+
+    rows, cols int16 (N,): each pixel's place relative to the pixel the object stands on;
+    colours uint8 (N, 3); near bool (h, w): the footprint grown by one pixel (8-neighbourhood),
+    its first row and column at (top, left) relative to the object's pixel.
+    """
+
+    rows: np.ndarray  # (N,) int16
+    cols: np.ndarray  # (N,) int16
+    colours: np.ndarray  # (N, 3) uint8
+    top: int
+    left: int
+    near: np.ndarray  # (h, w) bool
+
+    @property
+    def nbytes(self) -> int:
+        return self.rows.nbytes + self.cols.nbytes + self.colours.nbytes + self.near.nbytes
+
+
+def grid_pixel(o: Obj, px_per_m: float) -> tuple[int, int] | None:
+    """(row, col) of an upright object on the pixel grid, relative to the frame's centre (rows
+    grow downwards, y upwards); None for any other pose."""
+    x, y, z, qw, qx, qy, qz = o.pos
+    if z != 0.0 or (qw, qx, qy, qz) != (1.0, 0.0, 0.0, 0.0):
+        return None
+    c, r = x * px_per_m, -y * px_per_m
+    rc, rr = round(c), round(r)
+    if abs(c - rc) > GRID_TOL_PX or abs(r - rr) > GRID_TOL_PX:
+        return None
+    return int(rr), int(rc)
+
+
+def _grow(mask: np.ndarray) -> np.ndarray:
+    """bool (h + 2, w + 2): mask grown by one pixel in all eight directions."""
+    h, w = mask.shape
+    out = np.zeros((h + 2, w + 2), bool)
+    for dr in range(3):
+        for dc in range(3):
+            out[dr : dr + h, dc : dc + w] |= mask
+    return out
+
+
+class Compositor:
+    """Frames of tabletop scenes from cached top views, MuJoCo (`draw`) where not exact.
+
+    draw: MuJoCo's batched render (TopCamera.render_batch); like: a scene whose absent objects'
+    values say how the four slots are named and valued; cache_bytes: the views' bound.
+    """
+
+    def __init__(
+        self,
+        draw: Draw,
+        like: Scene,
+        *,
+        size_px: int = 80,
+        view_half_m: float = VIEW_HALF_M,
+        cache_bytes: int = CACHE_BYTES,
+    ) -> None:
+        self.draw = draw
+        self.size_px = size_px
+        self.px_per_m = size_px / (2 * view_half_m)
+        self.cache_bytes = cache_bytes
+        self.views: OrderedDict[Key, TopView] = OrderedDict()
+        self.bytes = 0
+        self.drawn = 0  # views drawn so far (for benchmarks)
+        self.fell_back = 0  # scenes handed to MuJoCo whole so far (for benchmarks)
+        self._meets: dict[tuple, bool] = {}  # (key a, key b, d row, d col) -> footprints meet
+        self._empty = Scene(
+            WORLD, tuple(Obj(s, False, like.obj(s).values, like.obj(s).pos) for s in SLOTS), (0.0,)
+        )
+        self.table = draw([self._empty])[0]  # (H, W, 3) uint8: the bare table
+
+    # -- the cache -----------------------------------------------------------------------------
+    def clear(self) -> None:
+        self.views.clear()
+        self._meets.clear()
+        self.bytes = 0
+
+    def _keep(self, key: Key, view: TopView) -> None:
+        self.views[key] = view
+        self.bytes += view.nbytes
+        while self.bytes > self.cache_bytes and len(self.views) > 1:
+            _, old = self.views.popitem(last=False)
+            self.bytes -= old.nbytes
+
+    def top_views(self, keys: Sequence[Key]) -> dict[Key, TopView]:
+        """The views of `keys`, drawing the missing ones (four per MuJoCo frame)."""
+        got: dict[Key, TopView] = {}
+        missing = []
+        for k in dict.fromkeys(keys):
+            v = self.views.get(k)
+            if v is None:
+                missing.append(k)
+            else:
+                self.views.move_to_end(k)
+                got[k] = v
+        frames = [missing[i : i + len(QUADRANTS)] for i in range(0, len(missing), len(QUADRANTS))]
+        if frames:
+            images = self.draw([self._studio(f, QUADRANTS) for f in frames])  # (F, H, W, 3)
+            alone = []
+            for keys_f, img in zip(frames, images, strict=True):
+                cut = [self._cut(img, a, whole=False) for a in QUADRANTS[: len(keys_f)]]
+                whole = [v for v in cut if v is not None]
+                if len(whole) < len(cut):  # one may spill into another's quadrant
+                    alone += keys_f
+                    continue
+                got.update(zip(keys_f, whole, strict=True))
+            if alone:
+                images = self.draw([self._studio([k], ("centre",)) for k in alone])
+                for key, img in zip(alone, images, strict=True):
+                    view = self._cut(img, "centre", whole=True)
+                    assert view is not None, f"{key} fills the whole frame"
+                    got[key] = view
+            self.drawn += len(missing)
+            for k in missing:
+                self._keep(k, got[k])
+        return got
+
+    def _studio(self, keys: Sequence[Key], areas: Sequence[str]) -> Scene:
+        """A scene with one object per key, slot by slot, at the areas' centres."""
+        objs = list(self._empty.objects)
+        for i, ((shape, colour), area) in enumerate(zip(keys, areas, strict=False)):
+            objs[i] = Obj(SLOTS[i], True, (("shape", shape), ("colour", colour)), pose(area))
+        return Scene(WORLD, tuple(objs), (0.0,))
+
+    def _cut(self, img: np.ndarray, area: str, *, whole: bool) -> TopView | None:
+        """The view of the object at `area`'s centre: the pixels of its frame quadrant (the
+        whole frame when `whole`) that differ from the table; None when they reach an edge of
+        that window (the object may spill out of it)."""
+        n, half = self.size_px, self.size_px // 2
+        x, y = AREAS[area]
+        r0, c0 = half + round(-y * self.px_per_m), half + round(x * self.px_per_m)
+        rows = (0, n) if whole else ((0, half) if y > 0 else (half, n))
+        cols = (0, n) if whole else ((0, half) if x < 0 else (half, n))
+        window = (slice(*rows), slice(*cols))
+        rr, cc = np.nonzero((img[window] != self.table[window]).any(axis=-1))
+        if len(rr) == 0:  # nothing drawn: an empty view
+            top = bottom = rows[0] + 1
+            left = right = cols[0] + 1
+        else:
+            top, bottom = rows[0] + rr.min(), rows[0] + rr.max() + 1
+            left, right = cols[0] + cc.min(), cols[0] + cc.max() + 1
+        if top == rows[0] or bottom == rows[1] or left == cols[0] or right == cols[1]:
+            return None
+        crop = (slice(top, bottom), slice(left, right))
+        mask = (img[crop] != self.table[crop]).any(axis=-1)  # (h, w)
+        rr, cc = np.nonzero(mask)
+        return TopView(
+            (rr + top - r0).astype(np.int16),
+            (cc + left - c0).astype(np.int16),
+            img[crop][mask],  # (N, 3)
+            int(top - r0 - 1),
+            int(left - c0 - 1),
+            _grow(mask),
+        )
+
+    # -- frames --------------------------------------------------------------------------------
+    def _meet(self, a: Key, pa: tuple[int, int], va: TopView, b: Key, pb, vb: TopView) -> bool:
+        """Whether the grown footprints of view a at pixel pa and view b at pb share a pixel."""
+        dr, dc = pb[0] - pa[0], pb[1] - pa[1]
+        memo = (a, b, dr, dc)
+        hit = self._meets.get(memo)
+        if hit is None:
+            # b's grown mask in a's grown mask's frame
+            ha, wa = va.near.shape
+            hb, wb = vb.near.shape
+            r = vb.top + dr - va.top
+            c = vb.left + dc - va.left
+            r0, r1, c0, c1 = max(0, r), min(ha, r + hb), max(0, c), min(wa, c + wb)
+            hit = bool(
+                r0 < r1
+                and c0 < c1
+                and (va.near[r0:r1, c0:c1] & vb.near[r0 - r : r1 - r, c0 - c : c1 - c]).any()
+            )
+            if len(self._meets) > 100_000:
+                self._meets.clear()
+            self._meets[memo] = hit
+        return hit
+
+    def _placement(self, scene: Scene) -> list[tuple[Key, tuple[int, int]]] | None:
+        """(view key, pixel) of each present object, or None when one is off the grid."""
+        objs = []
+        for o in scene.objects:
+            if o.present:
+                p = grid_pixel(o, self.px_per_m)
+                if p is None:
+                    return None
+                objs.append(((o.value("shape"), o.value("colour")), p))
+        return objs
+
+    def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
+        """uint8 (B, H, W, 3): the same pixels as `draw(scenes)`."""
+        n = self.size_px
+        out = np.empty((len(scenes), n, n, 3), np.uint8)
+        out[:] = self.table
+        placed = [self._placement(s) for s in scenes]
+        views = self.top_views([k for objs in placed if objs for k, _ in objs])
+        groups: dict[tuple[Key, tuple[int, int]], list[int]] = {}
+        fallback = []
+        for i, objs in enumerate(placed):
+            if objs is None or any(
+                self._meet(a, pa, views[a], b, pb, views[b])
+                for j, (a, pa) in enumerate(objs)
+                for b, pb in objs[j + 1 :]
+            ):
+                fallback.append(i)
+                continue
+            for ko in objs:
+                groups.setdefault(ko, []).append(i)
+        flat = out.reshape(len(scenes), n * n, 3)
+        for (key, (pr, pc)), rows in groups.items():
+            idx, vals = self._pixels(views[key], pr, pc)
+            flat[np.asarray(rows)[:, None], idx[None, :]] = vals[None]
+        if fallback:
+            self.fell_back += len(fallback)
+            out[fallback] = self.draw([scenes[i] for i in fallback])
+        return out
+
+    def _pixels(self, v: TopView, pr: int, pc: int) -> tuple[np.ndarray, np.ndarray]:
+        """Flat pixel indices (N,) of view v at pixel (pr, pc) inside the frame, and their
+        colours uint8 (N, 3)."""
+        n, half = self.size_px, self.size_px // 2
+        rows = v.rows.astype(np.intp) + (pr + half)
+        cols = v.cols.astype(np.intp) + (pc + half)
+        inside = (rows >= 0) & (rows < n) & (cols >= 0) & (cols < n)
+        if inside.all():
+            return rows * n + cols, v.colours
+        return rows[inside] * n + cols[inside], v.colours[inside]

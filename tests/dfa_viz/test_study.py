@@ -1,0 +1,208 @@
+"""`dfa study`: the protocol's balanced plans, the frozen tasks, the answers store, the analysis."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rerun as rr
+
+from dfa_viz.cli import main
+from dfa_viz.study.analysis import write_analysis
+from dfa_viz.study.answers import Answer, Store
+from dfa_viz.study.freeze import TRUTH, freeze, load_study, load_task
+from dfa_viz.study.protocol import Protocol, plan
+from sim.core import UserError
+
+SMALL = Protocol(tasks=(("nav2d", 1),), conditions=("none", "counterfactual"), seed=0)
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory) -> Path:
+    """A small study made by the real command (nav2d: 3 questions, 5 tasks)."""
+    root = tmp_path_factory.mktemp("study")
+    toml = root / "study.toml"
+    toml.write_text('seed = 0\nconditions = ["none", "counterfactual"]\n[tasks]\nnav2d = 1\n')
+    assert main(["study", "new", "--protocol", str(toml), "--out", str(root / "s")]) == 0
+    assert (root / "s" / "protocol.toml").read_text() == toml.read_text()
+    return root / "s"
+
+
+def test_the_papers_protocol_gives_balanced_plans():
+    p = Protocol(conditions=("none", "counterfactual", "saliency", "both"))
+    n = len(p.slots)
+    assert n == 12  # one per kind in nav2d and DoorKey, two in the tabletop
+    plans = [plan(p, k) for k in range(2 * n)]
+    for block in (plans[:n], plans[n:]):  # every slot at every position once per block
+        for j in range(n):
+            assert len({q[j].slot for q in block}) == n
+    two = [s for s in p.slots if s.kind != "other"]
+    for q in plans:  # half TI, half TR within each participant
+        shifts = Counter(x.shift[-2:] for x in q if x.slot.kind != "other")
+        assert shifts == {"ti": len(two) // 2, "tr": len(two) // 2}
+    for a, b in zip(
+        plans[0::2], plans[1::2], strict=True
+    ):  # each batch of two: every slot TI and TR once
+        sa = {x.slot: x.shift for x in a}
+        assert all(sa[x.slot] != x.shift for x in b if x.slot.kind != "other")
+    seen = Counter((x.slot, x.condition) for q in plans[:4] for x in q)
+    assert set(seen.values()) == {1}  # within: every slot under every condition once per 4
+    between = Protocol(conditions=("none", "counterfactual"), design="between")
+    conds = [{x.condition for x in plan(between, k)} for k in range(4)]
+    assert all(len(c) == 1 for c in conds)
+    assert Counter(c.pop() for c in conds) == {"none": 2, "counterfactual": 2}
+    assert plan(p, 5) == plan(p, 5)  # a participant's plan is a function of the protocol
+
+
+def test_bad_protocols_are_one_line_errors(tmp_path, capsys):
+    bad = {
+        'conditions = ["none", "hints"]': "unknown condition 'hints'",
+        'design = "mixed"': "design is between or within",
+        "[tasks]\nnowhere = 1": "unknown world",
+        "[tasks]\nnav2d = 0": "from 1 to 20",
+        "colour = 3": "unknown key 'colour'",
+        "seed = [": "not a TOML file",
+    }
+    for text, why in bad.items():
+        path = tmp_path / "study.toml"
+        path.write_text(text + "\n")
+        with pytest.raises(UserError, match=why):
+            Protocol.load(path)
+    assert main(["study", "new", "--protocol", str(path), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dfa: error:") and "\n" not in err
+    assert not (tmp_path / "x").exists()
+    assert main(["study", "analyse", str(tmp_path / "missing")]) == 2
+
+
+def test_frozen_tasks_are_files_without_pickles_or_ground_truth(study):
+    protocol, index = load_study(study)
+    assert protocol == SMALL
+    truth = json.loads((study / TRUTH).read_text())
+    assert len(truth) == 5 and {t["shift"] for t in truth.values()} == {
+        "object_ti",
+        "object_tr",
+        "distractor_ti",
+        "distractor_tr",
+        "other",
+    }
+    for tid, t in truth.items():
+        folder = study / "tasks" / tid
+        for npz in folder.glob("*.npz"):
+            with np.load(npz, allow_pickle=False) as z:  # raises on a pickled array
+                assert all(z[k].dtype != object for k in z.files)
+        view = json.loads((folder / "view.json").read_text())
+        assert set(view) == {"world", "instruction", "choices", "changed"}
+        assert t["shift"] not in json.dumps(view) and '"cause"' not in json.dumps(view)
+        task = load_task(study, tid)
+        assert task.saliency.dtype == np.float32 and task.saliency.ndim == 3
+        assert task.saliency.min() >= 0.0 and task.saliency.max() <= 1.0
+        assert set(t["required"]) <= {c["key"] for c in task.choices}
+        assert (task.counterfactual is None) == (t["kind"] == "other")
+    assert truth[index["nav2d/distractor/0"]["distractor_ti"]]["required"] == [
+        "distractor.colour",
+        "distractor.shape",
+    ]
+    with pytest.raises(UserError, match="already exists"):
+        freeze(SMALL, study)  # a study folder is never overwritten
+
+
+def test_answers_are_appended_durably_and_resume(tmp_path):
+    store = Store(tmp_path, SMALL)
+    number, questions, answers = store.join("P01")
+    assert (number, answers, len(questions)) == (0, [], 3)
+    a = Answer(0, "t01", ("goal.shape",), False, True, 1.5)
+    store.answer("P01", a)
+    with pytest.raises(UserError, match="out of turn"):
+        store.answer("P01", a)
+    path = tmp_path / "answers" / "P01.jsonl"
+    with open(path, "ab") as f:  # a crash while writing the next answer
+        f.write(b'{"type":"answer","posi')
+    again = Store(tmp_path, SMALL).join("P01")
+    assert again == (0, questions, [a])
+    store.answer("P01", Answer(1, "t05", (), True, False, 2.0))  # the torn line is cut off
+    assert len(path.read_text().splitlines()) == 3
+    assert store.join("P02")[0] == 1
+    with pytest.raises(UserError, match="never a name"):
+        store.join("Ada Lovelace")
+
+
+def test_the_analysis_matches_the_statistics_computed_again(study, study_check):
+    protocol, index = load_study(study)
+    truth = json.loads((study / TRUTH).read_text())
+    store = Store(study, protocol)
+    # four participants: those under the counterfactual name the cause, the others do not
+    for k in range(4):
+        pid = f"A{k}"
+        _, questions, _ = store.join(pid)
+        for j, q in enumerate(questions):
+            tid = index[q.slot.key][q.shift]
+            t = truth[tid]
+            right = q.condition == "counterfactual" or (k == 0 and t["kind"] == "object")
+            none = right if t["kind"] == "other" else not right
+            sel = () if none else tuple(t["required"]) if right else ("goal.colour",)
+            store.answer(pid, Answer(j, tid, sel, none, t["relevance"] == "TR", 1.0 + j))
+    a = write_analysis(study)
+    with open(study / "analysis" / "answers.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(a.rows) == 12
+    for r in rows:
+        t = truth[r["task"]]
+        sel = r["selected"].split()
+        assert int(r["correct"]) == study_check.correct(t, sel, r["none"] == "1")
+    for c in a.cells:
+        mine = [
+            int(r["correct"])
+            for r in rows
+            if (r["world"], r["kind"], r["condition"]) == (c.world, c.kind, c.condition)
+        ]
+        p = sum(mine) / len(mine)
+        assert (c.n, c.accuracy) == (len(mine), p)
+        assert math.isclose(c.se, math.sqrt(p * (1 - p) / len(mine)))
+    (test,) = a.chi2
+    cf = [int(r["correct"]) for r in rows if r["condition"] == "counterfactual"]
+    no = [int(r["correct"]) for r in rows if r["condition"] == "none"]
+    stat, p = study_check.chi2(sum(cf), len(cf) - sum(cf), sum(no), len(no) - sum(no))
+    assert math.isclose(test.chi2, stat) and math.isclose(test.p, p)
+    pairs = {}
+    for r in rows:
+        if r["relevance"]:
+            pairs.setdefault(r["participant"], {"TR": [], "TI": []})[r["relevance"]].append(
+                int(r["matters"])
+            )
+    tr = [np.mean(v["TR"]) for v in pairs.values() if v["TR"] and v["TI"]]
+    ti = [np.mean(v["TI"]) for v in pairs.values() if v["TR"] and v["TI"]]
+    assert a.pairs == len(tr) == 4
+    assert math.isclose(a.wilcoxon_p, study_check.wilcoxon(tr, ti))
+    assert a.rejection == 1.0
+    md = (study / "analysis" / "accuracy.md").read_text()
+    assert "97%" in md and "79%" in md  # the paper's numbers beside ours
+    assert (study / "analysis" / "accuracy.png").read_bytes()[:4] == b"\x89PNG"
+    logged = set()
+    for chunk in rr.chunk.RrdReader(study / "analysis" / "answers.rrd").store().stream():
+        logged.add(str(chunk.entity_path))
+    assert {"/answers/correct", "/answers/log", "/study/results"} <= logged
+    assert main(["study", "analyse", str(study)]) == 0
+
+
+def test_the_familiarisation_shows_each_explanation_only_to_those_who_get_it(study):
+    from dfa_viz.study.freeze import load_intro
+    from dfa_viz.study.page import intro_screens
+
+    def pictures(world):
+        return load_intro(study, world)
+
+    plain = intro_screens(SMALL, {"none"}, pictures)
+    full = intro_screens(SMALL, {"none", "both"}, pictures)
+    titles = [t for t, _, _ in full]
+    assert [t for t, _, _ in plain] == titles[:5]  # how it works, the looks, 3 kinds of change
+    assert titles[5:] == ["After one change (nav2d)", "Where it looked"]
+    for _, text, picture in full:
+        for jargon in ("R'", "Δφ", "counterfactual", "task-irrelevant", "TI ", "TR "):
+            assert jargon not in text
+        assert picture is None or (picture.dtype == np.uint8 and picture.shape[2] == 3)
