@@ -14,6 +14,7 @@ import tyro
 from dfa_viz.experiment.explain import EXPLAINERS
 from dfa_viz.experiment.explain import SHIFTS as EXPLAIN_SHIFTS
 from dfa_viz.experiment.explain import WORLDS as EXPLAIN_WORLDS
+from sim import PAPER_WORLDS
 from sim.core import UserError
 
 
@@ -299,7 +300,7 @@ class Q2Args:
 
     worlds: Annotated[
         tuple[Literal["nav2d", "doorkey", "tabletop"], ...], tyro.conf.arg(aliases=("--world",))
-    ] = ("nav2d", "doorkey", "tabletop")
+    ] = PAPER_WORLDS
     """Which of the paper's worlds."""
     shift: Literal["object", "distractor", "both"] = "both"
     """object, distractor, or both."""

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from policy.variants import stable_int
+from sim import PAPER_WORLDS
 from sim.core import Task, UserConcept, World
 from sim.core.visible import visible_concepts as scene_concepts
 
@@ -36,7 +37,7 @@ ACCURACY: dict[tuple[str, str], tuple[float, float]] = {
     ("tabletop", "distractor"): (0.09, 0.93),
 }
 
-PAPER_WORLDS = tuple(dict.fromkeys(w for w, _ in ACCURACY))  # the worlds the paper measured
+assert tuple(dict.fromkeys(w for w, _ in ACCURACY)) == PAPER_WORLDS, "the paper measured these"
 
 # The paper's finetuning success at PAPER_BUDGETS trajectories (design section 9).
 PAPER: dict[tuple[str, str, str], tuple[float, ...]] = {

@@ -25,6 +25,8 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
+from sim import PAPER_WORLDS
+
 if TYPE_CHECKING:
     from dfa_viz.experiment.experiment import Summary
 
@@ -45,7 +47,7 @@ EXPLAINER_NAMES = {
     "random": "Random",
 }
 SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
-WORLDS = ("nav2d", "doorkey", "tabletop")
+WORLDS = PAPER_WORLDS
 # the columns of tasks.csv, in order; the first four are a row's key
 COLUMNS = (
     "world",

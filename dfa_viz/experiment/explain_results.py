@@ -33,6 +33,7 @@ from dfa_viz.experiment.explain import (
     ExplainSettings,
 )
 from search.stats import wilson
+from sim import PAPER_WORLDS
 from sim.core import UserError, files
 
 METRICS = {
@@ -186,7 +187,7 @@ def panel_order(rows: Sequence[Mapping[str, str]]) -> tuple[list[str], list[tupl
     explainers = [e for e in EXPLAINERS if any(r["explainer"] == e for r in rows)]
     pairs = sorted(
         {(r["world"], r["shift"]) for r in rows},
-        key=lambda p: (_rank(p[0], ("nav2d", "doorkey", "tabletop")), _rank(p[1], SHIFTS)),
+        key=lambda p: (_rank(p[0], PAPER_WORLDS), _rank(p[1], SHIFTS)),
     )
     return explainers, pairs
 

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from dfa_viz.study.answers import Store
 from dfa_viz.study.freeze import TRUTH, load_study, read_json
+from sim import PAPER_WORLDS
 from sim.core import UserError, files
 
 ANALYSIS = "analysis"
@@ -47,7 +48,7 @@ COLUMNS = (
     "correct",
     "duration_s",
 )
-WORLD_ORDER = ("nav2d", "doorkey", "tabletop")
+WORLD_ORDER = PAPER_WORLDS
 # the paper's accuracies (Figure 4): kind -> (without, with counterfactuals) per world
 PAPER = {
     "object": {"none": (0.28, 0.12, 0.03), "counterfactual": (0.97, 0.93, 0.94)},
