@@ -2,222 +2,25 @@
 
 from __future__ import annotations
 
-import uuid
 from collections.abc import Sequence
-from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
-import rerun.blueprint as rrb
 
 from dfa_viz import charts
 from dfa_viz.charts import rgb
+from dfa_viz.layout import action_labels, blueprint
 from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
+from dfa_viz.rrd import RrdFile, recording_id, send_blueprint
 from search import Candidate, SearchResult, distance_to_demo
-from sim.core import Edit, Feedback, Trajectory, World, files
+from sim.core import Edit, Feedback, Trajectory, World
 
-APP_ID = "dfa"
-ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
 JPEG_QUALITY = 90
 DETAIL_LIMIT = 300  # searches up to this size get one entity per candidate
 DETAIL_BEST = 50  # larger ones: every candidate as a row, traces for the valid and best few
-AUGMENTED_SHOWN = 8  # variants given a view of their own (all are recorded)
 SALIENCY_ORDER = 10.0  # draw order of the saliency layer: above the frame (images default -10)
-
-
-def recording_id(world: str, shift: str, seed: int) -> uuid.UUID:
-    """The same run always gets the same recording id (reproducible files)."""
-    return uuid.uuid5(uuid.NAMESPACE_URL, f"dfa/{world}/{shift}/{seed}")
-
-
-def new_stream(rid: uuid.UUID, *, app_id: str = APP_ID) -> rr.RecordingStream:
-    """A stream whose file holds the same content for the same calls, on any machine.
-
-    No log time or tick columns; rows are cut into chunks by size and row count, never by a
-    wall-clock tick, so the chunks are the same too. (Rerun's own row and chunk ids are
-    time-based: two files of one run differ in those bytes only.)
-    """
-    # Rerun keeps every stream dropped so far (its two threads and every row it logged) until
-    # this sweep, which rr.init also does; a server writes a file per action, so sweep here.
-    rr.bindings.flush_and_cleanup_orphaned_recordings()
-    rec = rr.RecordingStream(
-        app_id,
-        recording_id=rid,
-        send_properties=False,
-        batcher_config=rr.ChunkBatcherConfig(
-            flush_tick=timedelta(days=1), flush_num_bytes=1 << 20, flush_num_rows=4096
-        ),
-    )
-    rec.set_log_time_enabled(False)
-    rec.set_log_tick_enabled(False)
-    return rec
-
-
-class RrdFile:
-    """An .rrd written atomically: logged to a temporary file beside `path`, moved into place
-    by `close()`; `close(keep=False)` (or an exception inside `with`) leaves `path` as it was."""
-
-    def __init__(self, path: str | Path, rid: uuid.UUID, *, app_id: str = APP_ID) -> None:
-        self.path = Path(path)
-        self.tmp = files.temp_beside(self.path)
-        self.rec = new_stream(rid, app_id=app_id)
-        self.rec.save(self.tmp)
-
-    def close(self, *, keep: bool = True) -> Path:
-        self.rec.flush()
-        self.rec.disconnect()
-        if keep:
-            files.commit(self.tmp, self.path)
-        files.discard(self.tmp)
-        return self.path
-
-    def __enter__(self) -> rr.RecordingStream:
-        return self.rec
-
-    def __exit__(self, kind, value, tb) -> None:
-        self.close(keep=kind is None)
-
-
-def send_blueprint(rec: rr.RecordingStream, bp: rrb.Blueprint) -> None:
-    """`rec.send_blueprint(bp)` (active and default), and the blueprint's stream closed after.
-
-    Rerun 0.41's own send_blueprint logs the blueprint to a stream of its own that is never
-    released (two threads and half a megabyte per call); disconnecting that stream frees it.
-    """
-    stream = rr.RecordingStream._from_native(
-        rr.bindings.new_blueprint(
-            application_id=rec.get_application_id(),
-            make_default=False,
-            make_thread_default=False,
-            default_enabled=True,
-        )
-    )
-    try:
-        stream.set_time("blueprint", sequence=0)
-        bp.to_blueprint()._log_to_stream(stream)
-        storage = stream.memory_recording().storage
-        rr.bindings.send_blueprint(storage, True, True, recording=rec.to_native())
-    finally:
-        stream.disconnect()
-
-
-def _mark(traj: Trajectory | None) -> str:
-    return "" if traj is None else (" ✓" if traj.success else " ✗")
-
-
-def rollout_titles(record: RunRecord) -> dict[str, str]:
-    """Each rollout's view title, with ✓ or ✗ for whether it did what the user wants."""
-    d, ad = record.diagnosis, record.adaptation
-    cf = d.counterfactual if d is not None else None
-    return {
-        "failed": f"the policy{_mark(record.rollout)}",
-        "demonstration": f"your demonstration{_mark(record.demo)}",
-        "counterfactual": f"the policy after the edit{_mark(cf)}",
-        "finetuned": f"finetuned{_mark(ad.rollout if ad else None)}",
-    }
-
-
-def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -> rrb.Blueprint:
-    """What a reviewer sees first: the four rollouts side by side on one `step` timeline
-    (paused at step 0), the action distance and the actions beneath, then the task, what
-    changed, the feedback, the variants finetuned on, the loss and the success. saliency: the
-    method whose layer lies over the failed rollout's frames (named in its title)."""
-    titles = rollout_titles(record)
-    if saliency is not None:
-        from policy.saliency import METHOD_NAMES
-
-        titles["failed"] += f" · {METHOD_NAMES.get(saliency, saliency)}"
-    views: list = [
-        rrb.Spatial2DView(origin=f"rollouts/{name}", name=titles[name]) for name in ROLLOUTS
-    ]
-    if world.view3d is not None:
-        from dfa_viz import scene3d
-
-        views += scene3d.views()
-    one_step = world.horizon == 1
-    if one_step:  # one point per rollout: bars, not curves
-        plots: list = [
-            rrb.Spatial2DView(origin="charts/distance", name="distance to the demonstration"),
-            rrb.Spatial2DView(origin="charts/candidates", name="every edit the search tried"),
-        ]
-    else:
-        plots = [
-            rrb.TimeSeriesView(
-                origin="action_distance",
-                name="action distance to the demonstration",
-                plot_legend=rrb.PlotLegend("RightTop"),
-                axis_y=rrb.ScalarAxis(range=(0.0, _distance_top(world, record))),
-            ),
-            rrb.TimeSeriesView(
-                origin="search",
-                contents=["search/candidates/**", "search/epsilon"],
-                name="every edit the search tried (green: follows the demonstration, red: not)",
-                plot_legend=rrb.PlotLegend(visible=False),
-            ),
-            rrb.Tabs(
-                *(
-                    rrb.TimeSeriesView(
-                        origin="/",
-                        contents=[f"rollouts/{name}/action/{k}" for name in ROLLOUTS],
-                        name=f"action: {label}",
-                    )
-                    for k, label in enumerate(action_labels(world))
-                ),
-                name="actions",
-            ),
-        ]
-    n_aug = len(record.adaptation.augmented) if record.adaptation else 0
-    bottom: list = [
-        rrb.TextDocumentView(origin="task", name="the task"),
-        rrb.TextDocumentView(origin="edit", name="what changed"),
-        rrb.TextDocumentView(origin="feedback", name="your feedback"),
-    ]
-    if n_aug:
-        bottom.append(
-            rrb.Grid(
-                *(
-                    rrb.Spatial2DView(origin=f"augmented/a{i:03d}", name=f"variant {i + 1}")
-                    for i in range(min(n_aug, AUGMENTED_SHOWN))
-                ),
-                name=f"variants finetuned on ({n_aug})",
-            )
-        )
-    bottom += [
-        rrb.Spatial2DView(origin="charts/loss", name="finetuning loss"),
-        rrb.Spatial2DView(origin="charts/success", name="success before → after"),
-    ]
-    return rrb.Blueprint(
-        rrb.Vertical(
-            rrb.Horizontal(*views),
-            rrb.Horizontal(*plots),
-            rrb.Horizontal(*bottom),
-            row_shares=[3, 2, 2],
-        ),
-        rrb.TimePanel(timeline="step", play_state="paused", state="collapsed"),
-        collapse_panels=True,
-    )
-
-
-def action_labels(world: World) -> tuple[str, ...]:
-    """A name per action dimension: the world's own, else "action k" (discrete: "action")."""
-    if world.discrete:
-        return ("action (index)",)
-    return world.action_names or tuple(f"action {k}" for k in range(world.action_dim))
-
-
-def _distance_top(world: World, record: RunRecord) -> float:
-    """The top of the distance plot: every rollout's largest distance, and epsilon."""
-    top = world.epsilon if not world.discrete else 1.0
-    if record.demo is None:
-        return max(top, 1.0)
-    trajs = [record.rollout, record.diagnosis.counterfactual if record.diagnosis else None]
-    trajs.append(record.adaptation.rollout if record.adaptation else None)
-    for traj in trajs:
-        if traj is not None:
-            top = max(top, float(np.nanmax(distance_to_demo(world, traj, record.demo), initial=0)))
-    return round(1.1 * top, 3) or 1.0
 
 
 def edit_table(edit: Edit) -> str:

@@ -20,7 +20,7 @@ from dfa_viz.experiment.conditions import (
     paper_value,
 )
 from dfa_viz.experiment.results import Cell, cells, panels
-from dfa_viz.recording import RrdFile, send_blueprint
+from dfa_viz.rrd import RrdFile, send_blueprint
 from sim.core import files
 
 COLOURS = {  # RGB 0..255

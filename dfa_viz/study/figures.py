@@ -18,7 +18,7 @@ import numpy as np
 import rerun as rr
 
 from dfa_viz.experiment.figures import _save
-from dfa_viz.recording import RrdFile
+from dfa_viz.rrd import RrdFile
 from dfa_viz.study.analysis import WORLD_ORDER, Analysis, Cell, paper_accuracy, table_md
 from dfa_viz.study.protocol import CONDITIONS, KINDS
 

@@ -17,7 +17,8 @@ from pathlib import Path
 import rerun as rr
 import rerun.blueprint as rrb
 
-from dfa_viz.recording import Recorder, RrdFile, send_blueprint
+from dfa_viz.recording import Recorder
+from dfa_viz.rrd import RrdFile, send_blueprint
 from dfa_viz.sweep.figures import Heatmap, concept_bars, concept_names
 from search.sweep import SweepCell, SweepResult, failure_task, task_of
 from sim.core import World

@@ -1,0 +1,132 @@
+"""The layout a reviewer first sees in a run's recording (its blueprint): the rollouts side
+by side titled with ✓ or ✗, the distances and actions beneath, the texts, the variants and
+the charts."""
+
+from __future__ import annotations
+
+import numpy as np
+import rerun.blueprint as rrb
+
+from dfa_viz.loop import RunRecord
+from search import distance_to_demo
+from sim.core import Trajectory, World
+
+ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
+AUGMENTED_SHOWN = 8  # variants given a view of their own (all are recorded)
+
+
+def _mark(traj: Trajectory | None) -> str:
+    return "" if traj is None else (" ✓" if traj.success else " ✗")
+
+
+def rollout_titles(record: RunRecord) -> dict[str, str]:
+    """Each rollout's view title, with ✓ or ✗ for whether it did what the user wants."""
+    d, ad = record.diagnosis, record.adaptation
+    cf = d.counterfactual if d is not None else None
+    return {
+        "failed": f"the policy{_mark(record.rollout)}",
+        "demonstration": f"your demonstration{_mark(record.demo)}",
+        "counterfactual": f"the policy after the edit{_mark(cf)}",
+        "finetuned": f"finetuned{_mark(ad.rollout if ad else None)}",
+    }
+
+
+def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -> rrb.Blueprint:
+    """What a reviewer sees first: the four rollouts side by side on one `step` timeline
+    (paused at step 0), the action distance and the actions beneath, then the task, what
+    changed, the feedback, the variants finetuned on, the loss and the success. saliency: the
+    method whose layer lies over the failed rollout's frames (named in its title)."""
+    titles = rollout_titles(record)
+    if saliency is not None:
+        from policy.saliency import METHOD_NAMES
+
+        titles["failed"] += f" · {METHOD_NAMES.get(saliency, saliency)}"
+    views: list = [
+        rrb.Spatial2DView(origin=f"rollouts/{name}", name=titles[name]) for name in ROLLOUTS
+    ]
+    if world.view3d is not None:
+        from dfa_viz import scene3d
+
+        views += scene3d.views()
+    one_step = world.horizon == 1
+    if one_step:  # one point per rollout: bars, not curves
+        plots: list = [
+            rrb.Spatial2DView(origin="charts/distance", name="distance to the demonstration"),
+            rrb.Spatial2DView(origin="charts/candidates", name="every edit the search tried"),
+        ]
+    else:
+        plots = [
+            rrb.TimeSeriesView(
+                origin="action_distance",
+                name="action distance to the demonstration",
+                plot_legend=rrb.PlotLegend("RightTop"),
+                axis_y=rrb.ScalarAxis(range=(0.0, _distance_top(world, record))),
+            ),
+            rrb.TimeSeriesView(
+                origin="search",
+                contents=["search/candidates/**", "search/epsilon"],
+                name="every edit the search tried (green: follows the demonstration, red: not)",
+                plot_legend=rrb.PlotLegend(visible=False),
+            ),
+            rrb.Tabs(
+                *(
+                    rrb.TimeSeriesView(
+                        origin="/",
+                        contents=[f"rollouts/{name}/action/{k}" for name in ROLLOUTS],
+                        name=f"action: {label}",
+                    )
+                    for k, label in enumerate(action_labels(world))
+                ),
+                name="actions",
+            ),
+        ]
+    n_aug = len(record.adaptation.augmented) if record.adaptation else 0
+    bottom: list = [
+        rrb.TextDocumentView(origin="task", name="the task"),
+        rrb.TextDocumentView(origin="edit", name="what changed"),
+        rrb.TextDocumentView(origin="feedback", name="your feedback"),
+    ]
+    if n_aug:
+        bottom.append(
+            rrb.Grid(
+                *(
+                    rrb.Spatial2DView(origin=f"augmented/a{i:03d}", name=f"variant {i + 1}")
+                    for i in range(min(n_aug, AUGMENTED_SHOWN))
+                ),
+                name=f"variants finetuned on ({n_aug})",
+            )
+        )
+    bottom += [
+        rrb.Spatial2DView(origin="charts/loss", name="finetuning loss"),
+        rrb.Spatial2DView(origin="charts/success", name="success before → after"),
+    ]
+    return rrb.Blueprint(
+        rrb.Vertical(
+            rrb.Horizontal(*views),
+            rrb.Horizontal(*plots),
+            rrb.Horizontal(*bottom),
+            row_shares=[3, 2, 2],
+        ),
+        rrb.TimePanel(timeline="step", play_state="paused", state="collapsed"),
+        collapse_panels=True,
+    )
+
+
+def action_labels(world: World) -> tuple[str, ...]:
+    """A name per action dimension: the world's own, else "action k" (discrete: "action")."""
+    if world.discrete:
+        return ("action (index)",)
+    return world.action_names or tuple(f"action {k}" for k in range(world.action_dim))
+
+
+def _distance_top(world: World, record: RunRecord) -> float:
+    """The top of the distance plot: every rollout's largest distance, and epsilon."""
+    top = world.epsilon if not world.discrete else 1.0
+    if record.demo is None:
+        return max(top, 1.0)
+    trajs = [record.rollout, record.diagnosis.counterfactual if record.diagnosis else None]
+    trajs.append(record.adaptation.rollout if record.adaptation else None)
+    for traj in trajs:
+        if traj is not None:
+            top = max(top, float(np.nanmax(distance_to_demo(world, traj, record.demo), initial=0)))
+    return round(1.1 * top, 3) or 1.0
