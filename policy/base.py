@@ -14,7 +14,7 @@ repository, with the recipe they were trained from in their config.json:
 `base_policy(world)` loads the committed weights once it has checked that today's recipe is the
 one they were trained with. A changed recipe with stale weights is an error that names the
 command to retrain, never a silent retrain. Worlds without committed weights (and seeds other
-than 0) are trained on first use and cached under `cache_dir()` instead.
+than 0) are trained on first use and cached under `files.cache_dir()` instead.
 """
 
 from __future__ import annotations
@@ -48,13 +48,8 @@ RECORD_SEED = 0  # the seed whose base policies are committed
 FRAME_TOLERANCE = 0.5  # mean frame colours may differ this much (of 255) between renderers
 
 
-def cache_dir() -> Path:
-    """Where base policies without committed weights are cached: $DFA_CACHE, else ~/.cache/dfa."""
-    return Path(os.environ.get("DFA_CACHE", Path.home() / ".cache" / "dfa"))
-
-
 def machine_name() -> str:
-    """The processor and core count, as one line (e.g. "AMD EPYC 7B13; 2 logical cores")."""
+    """The processor and core count, as one line (e.g. "Intel(R) Xeon(R) Processor; 2 logical cores")."""
     cpu = platform.processor() or platform.machine()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -170,4 +165,4 @@ def base_policy(
 
 def _cached(now: dict) -> Path:
     key = _sha(json.dumps({k: v for k, v in now.items() if k != "frame_colours"}, sort_keys=True))
-    return cache_dir() / "policies" / files.safe_name(f"{now['world']}-{key}")
+    return files.cache_dir() / "policies" / files.safe_name(f"{now['world']}-{key}")

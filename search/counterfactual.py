@@ -134,13 +134,10 @@ def counterfactual_search(
     prior: dict[Change, float] = {}
     totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
     for size in range(1, config.max_size + 1):
-        listed = list(
-            combinations(
-                world.space, scene, size, prior=prior if (config.prior and size > 1) else None
-            )
-        )
-        totals[size] = total = len(listed)
-        edits = iter(listed)
+        edits = combinations(
+            world.space, scene, size, prior=prior if (config.prior and size > 1) else None
+        )  # generated as they are tried
+        totals[size] = total = count(world.space, scene, size)
         done, valid = 0, []
         if on_progress is not None:
             on_progress(size, 0, total)

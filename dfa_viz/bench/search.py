@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dfa_viz.bench.bound import forward_bound_s, step_batches
 from dfa_viz.bench.timing import best_of
 from policy import Policy, base_policy, failing_test_task
 from policy.model import probabilities
@@ -48,10 +49,9 @@ def bench_world(
     policy: str | None = None,
 ) -> dict:
     """Time the whole search over `sizes` (every edit of each size, no early stop), batched in
-    lockstep and naive, on one failing task of `shift`; and the forward-pass bound: the
-    candidate-steps the search evaluated divided by the policy's batched forward throughput
-    at the search's batch size. `policy`: a policy spec (policy.outside) instead of the base
-    policy."""
+    lockstep and naive, on one failing task of `shift`; and its forward-pass bound
+    (dfa_viz.bench.bound: the policy's forward passes over the batches the search ran).
+    `policy`: a policy spec (policy.outside) instead of the base policy."""
     from policy.outside import load
 
     world = get_world(name)
@@ -72,11 +72,12 @@ def bench_world(
     assert naive_valid == [c.valid for c in tried], "naive and batched searches disagree"
     evaluated = int(sum(np.isfinite(c.distances).sum() for c in tried))  # candidate-steps
     frames = world.render_batch([world.apply(task.scene, e) for e in everything])  # (N, H, W, 3)
-    t_forward, _ = best_of(lambda: policy.outputs(frames), max(repeats, 5))
-    bound = evaluated * t_forward / len(everything)
+    batches = step_batches([tried])
+    bound = forward_bound_s(policy, frames, batches, max(repeats, 5))
     return {
         "evaluated": evaluated,
-        "forward_per_s": len(everything) / t_forward,
+        "passes": len(batches),
+        "forward_per_s": evaluated / bound,
         "bound_s": bound,
         "to_bound": t_batched / bound,
         "candidates": len(everything),

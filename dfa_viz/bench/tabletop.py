@@ -1,10 +1,10 @@
-"""The tabletop search at scale, timed here: every single edit, a size-2 search to its first
-valid edit, a naive loop (per candidate the edit made in place, one MuJoCo render, a batch-1
-forward), and (dfa_viz.bench.compositing) every edit up to size 2 on an `other` task against
-the forward-pass bound, with composited and with MuJoCo frames.
+"""The tabletop search at scale, timed here: every single edit, size-2 and size-3 searches to
+their first valid edit, a naive loop (per candidate the edit made in place, one MuJoCo render,
+a batch-1 forward), and (dfa_viz.bench.compositing) every edit up to size 2 on an `other` task
+against the forward-pass bound, with composited and with MuJoCo frames.
 
-Targets on 2 cores: all single edits <= 2 s; size 2 to the first valid edit <= 30 s; every edit
-up to size 2 on `other` <= 2 s and within 2x of the bound.
+Targets on 2 cores: all single edits <= 2 s; size 2 and size 3 to the first valid edit <= 30 s;
+every edit up to size 2 on `other` <= 2 s and within 2x of the bound.
 """
 
 from __future__ import annotations
@@ -14,27 +14,35 @@ import numpy as np
 from dfa_viz.bench.compositing import bench_other, compositing_rows, naive_candidate
 from dfa_viz.bench.timing import best_of
 from policy import base_policy, failing_test_task
-from search import SearchConfig, counterfactual_search, rollout_lockstep, singles
+from search import SearchConfig, count, counterfactual_search, rollout_lockstep, singles
 from sim import get_world
 from sim.core import Task
 
-TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0}
+TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0, "triples_first_valid_s": 30.0}
 NAIVE_SAMPLE = 50  # naive candidates timed; the per-candidate time is extrapolated from them
 
 
-def double_shift_task(world, seed: int = 0) -> Task:
-    """A task no single edit explains: a training layout with the object's colour and the
-    goal's shape both changed (the planted size-2 cause)."""
+PLANTED = {
+    2: ("object.colour", "goal.shape"),
+    3: ("object.colour", "goal.shape", "goal.colour"),
+}  # the concepts a planted shift of each size changes
+
+
+def planted_shift_task(world, seed: int = 0, size: int = 2) -> Task:
+    """A task only an edit of `size` changes explains: a training layout with PLANTED[size]
+    each changed to another value, drawn from `seed` (the planted size-2 or size-3 cause)."""
     from sim.tabletop import tasks as TK
 
     rng = np.random.default_rng([seed, 11])
     oa, ga = TK.TRAIN_LAYOUTS[seed % len(TK.TRAIN_LAYOUTS)]
-    colours = [c for c in world.colours if c != TK.TRAIN_OBJECT[1]]
-    goals = [g for g in TK.GOALS if g != TK.TRAIN_GOAL[0]]
-    colour, goal_shape = colours[rng.integers(len(colours))], goals[rng.integers(len(goals))]
-    scene = TK.make_scene(
-        (TK.TRAIN_OBJECT[0], colour), (goal_shape, TK.TRAIN_GOAL[1]), obj_area=oa, goal_area=ga
-    )
+    looks = {"object": list(TK.TRAIN_OBJECT), "goal": list(TK.TRAIN_GOAL)}
+    options = {"object.shape": TK.MANIPULATED, "goal.shape": TK.GOALS}
+    for name in PLANTED[size]:
+        slot, concept = name.split(".")
+        k = 0 if concept == "shape" else 1
+        pool = [v for v in options.get(name, world.colours) if v != looks[slot][k]]
+        looks[slot][k] = pool[rng.integers(len(pool))]
+    scene = TK.make_scene(tuple(looks["object"]), tuple(looks["goal"]), obj_area=oa, goal_area=ga)
     return Task(TK.WORLD, scene, TK.train_reward(), "object_tr", seed, ("object", "colour"))
 
 
@@ -45,6 +53,8 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         rolled out in lockstep (batched renders and forward passes).
     pairs_first_valid_s: counterfactual_search with the world's config (first_only) on a
         planted double shift, to its first valid edit (singles and pairs included).
+    triples_first_valid_s: the same up to size 3, no candidate limit, on a planted triple
+        shift (one run).
     naive_per_candidate_s: per candidate the edit made in place, one MuJoCo render and a
         batch-1 forward; measured on NAIVE_SAMPLE candidates and extrapolated.
     ratio: naive per candidate / batched per candidate (over the singles).
@@ -76,7 +86,7 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
 
     render_s, _ = best_of(edit_render, repeats)
 
-    double = double_shift_task(world, seed)
+    double = planted_shift_task(world, seed, 2)
     double_demo = world.demonstrate(double)
     config = SearchConfig.for_world(world)
     pairs_s, result = best_of(
@@ -86,6 +96,18 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
     n_singles = sum(c.edit.size == 1 for c in result.tried)
     rank = next(
         (i - n_singles + 1 for i, c in enumerate(result.tried) if c.valid and c.edit.size == 2),
+        None,
+    )
+
+    triple = planted_shift_task(world, seed, 3)
+    triple_demo = world.demonstrate(triple)
+    config3 = SearchConfig(max_size=3, first_only=True, max_candidates=None)
+    triples_s, found3 = best_of(
+        lambda: counterfactual_search(world, policy, triple.scene, triple_demo, config=config3), 1
+    )
+    before3 = sum(c.edit.size < 3 for c in found3.tried)
+    rank3 = next(
+        (i - before3 + 1 for i, c in enumerate(found3.tried) if c.valid and c.edit.size == 3),
         None,
     )
 
@@ -115,6 +137,12 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         "pairs_tried": len(result.tried) - n_singles,
         "pairs_rank_of_first_valid": rank,
         "pairs_edit": str(result.best.edit) if result.best else None,
+        "triples_first_valid_s": triples_s,
+        "triples_found_size": found3.size,
+        "triples_total": count(world.space, triple.scene, 3),
+        "triples_tried": len(found3.tried) - before3,
+        "triples_rank_of_first_valid": rank3,
+        "triples_edit": str(found3.best.edit) if found3.best else None,
         "naive_per_candidate_s": naive_per,
         "naive_sampled": len(sample),
         "batched_per_candidate_s": batched_per,
@@ -142,6 +170,16 @@ def bench_rows(r: dict) -> list[tuple[str, str, str, bool | None]]:
             f"{r['pairs_first_valid_s']:.2f} s",
             f"<= {TARGETS['pairs_first_valid_s']:.0f} s",
             r["pairs_first_valid_s"] <= TARGETS["pairs_first_valid_s"],
+        ),
+        (
+            f"size-3 search on a planted triple shift to its first valid edit "
+            f"({r['triples_edit']}: #{r['triples_rank_of_first_valid']} of "
+            f"{r['triples_total']} size-3 edits in prior order; {r['triples_tried']} tried "
+            "in whole waves)",
+            f"{r['triples_first_valid_s']:.2f} s",
+            f"<= {TARGETS['triples_first_valid_s']:.0f} s",
+            r["triples_found_size"] == 3
+            and r["triples_first_valid_s"] <= TARGETS["triples_first_valid_s"],
         ),
         (
             f"batched ({r['batched_per_candidate_s'] * 1e3:.2f} ms per candidate) vs naive: "

@@ -18,6 +18,12 @@ _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 
+def cache_dir() -> Path:
+    """Where what can be made again is kept between runs (base policies without committed
+    weights, drawn top views): $DFA_CACHE, else ~/.cache/dfa."""
+    return Path(os.environ.get("DFA_CACHE", Path.home() / ".cache" / "dfa"))
+
+
 def temp_beside(path: str | Path) -> Path:
     """A new, empty, hidden temporary file in `path`'s folder (created with it if needed).
 

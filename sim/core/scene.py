@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from sim.core.errors import UserError
@@ -36,7 +36,7 @@ class Obj:
     def with_value(self, concept: str, value: str) -> Obj:
         self.value(concept)  # raises on an unknown concept
         values = tuple((n, value if n == concept else v) for n, v in self.values)
-        return replace(self, values=values)
+        return Obj(self.slot, self.present, values, self.pos)
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,8 @@ class Scene:
 
     def with_obj(self, obj: Obj) -> Scene:
         self.obj(obj.slot)
-        return replace(self, objects=tuple(obj if o.slot == obj.slot else o for o in self.objects))
+        objects = tuple(obj if o.slot == obj.slot else o for o in self.objects)
+        return Scene(self.world, objects, self.agent)
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -12,7 +12,8 @@ object's top view pasted on it. Two facts make the cache small:
   upright pose on the pixel grid.
 
 A view is drawn once by MuJoCo, four at a time (one per quadrant of a frame, each slot holding
-one), and kept in a cache bounded in bytes, least recently used out first. A scene is composited
+one), and kept in a cache bounded in bytes, least recently used out first, and on disk
+(sim.tabletop.view_store) for the next run. A scene is composited
 when every present object stands upright on the pixel grid and no two footprints, each grown by
 one pixel, meet: then no pixel mixes two objects (the anti-aliased edge of a view is its mix
 with the table, which the table frame reproduces) and the frame is MuJoCo's own, pixel for
@@ -25,6 +26,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -73,6 +75,13 @@ def grid_pixel(o: Obj, px_per_m: float) -> tuple[int, int] | None:
     return int(rr), int(rc)
 
 
+def _same(a: TopView, b: TopView) -> bool:
+    return (a.top, a.left) == (b.top, b.left) and all(
+        np.array_equal(x, y)
+        for x, y in ((a.rows, b.rows), (a.cols, b.cols), (a.colours, b.colours), (a.near, b.near))
+    )
+
+
 def _grow(mask: np.ndarray) -> np.ndarray:
     """bool (h + 2, w + 2): mask grown by one pixel in all eight directions."""
     h, w = mask.shape
@@ -98,8 +107,10 @@ class Compositor:
         size_px: int = 80,
         view_half_m: float = VIEW_HALF_M,
         cache_bytes: int = CACHE_BYTES,
+        store: Path | None = None,
     ) -> None:
         self.draw = draw
+        self.store = store
         self.size_px = size_px
         self.px_per_m = size_px / (2 * view_half_m)
         self.cache_bytes = cache_bytes
@@ -112,12 +123,37 @@ class Compositor:
             WORLD, tuple(Obj(s, False, like.obj(s).values, like.obj(s).pos) for s in SLOTS), (0.0,)
         )
         self.table = draw([self._empty])[0]  # (H, W, 3) uint8: the bare table
+        if store is not None:
+            self._open(store)
 
     # -- the cache -----------------------------------------------------------------------------
     def clear(self) -> None:
         self.views.clear()
         self._meets.clear()
         self.bytes = 0
+
+    def reopen(self) -> None:
+        """Empty the cache and read the stored views again, as a new process would."""
+        self.clear()
+        if self.store is not None:
+            self._open(self.store)
+
+    def _open(self, store: Path) -> None:
+        """Take the views kept in `store` (sim.tabletop.view_store) when a few of them, drawn
+        again now, are the same pixels; otherwise start empty (the file is written anew)."""
+        from sim.tabletop import view_store
+
+        kept = view_store.load(store)
+        probe = list(kept)[: len(QUADRANTS)]
+        self.store = None  # drawing the probe must not write the file over before it is read
+        try:
+            fresh = self.top_views(probe)
+        finally:
+            self.store = store
+        if all(_same(fresh[k], kept[k]) for k in probe):
+            for k, v in kept.items():
+                if k not in self.views:
+                    self._keep(k, v)
 
     def _keep(self, key: Key, view: TopView) -> None:
         self.views[key] = view
@@ -157,6 +193,10 @@ class Compositor:
             self.drawn += len(missing)
             for k in missing:
                 self._keep(k, got[k])
+            if self.store is not None:
+                from sim.tabletop import view_store
+
+                view_store.save(self.store, self.views)
         return got
 
     def _studio(self, keys: Sequence[Key], areas: Sequence[str]) -> Scene:
@@ -220,38 +260,85 @@ class Compositor:
             self._meets[memo] = hit
         return hit
 
-    def _placement(self, scene: Scene) -> list[tuple[Key, tuple[int, int]]] | None:
-        """(view key, pixel) of each present object, or None when one is off the grid."""
+    def _placement(
+        self, scene: Scene, memo: dict
+    ) -> list[tuple[Key, tuple[int, int]] | None] | None:
+        """Per slot the (view key, pixel) of its object, None where absent; None for the whole
+        scene when an object is off the grid. memo: id(Obj) -> its entry, for one batch (an
+        edit leaves the other objects of a scene the same objects)."""
         objs = []
         for o in scene.objects:
-            if o.present:
-                p = grid_pixel(o, self.px_per_m)
-                if p is None:
-                    return None
-                objs.append(((o.value("shape"), o.value("colour")), p))
+            hit = memo.get(id(o))
+            if hit is None:
+                if not o.present:
+                    hit = (None,)
+                else:
+                    p = grid_pixel(o, self.px_per_m)
+                    hit = (None if p is None else ((o.value("shape"), o.value("colour")), p), o)
+                memo[id(o)] = hit
+            if o.present and hit[0] is None:
+                return None
+            objs.append(hit[0])
         return objs
 
+    def _clash(self, objs: Sequence, views: dict[Key, TopView]) -> bool:
+        """Whether two of a scene's objects (placements) come within a pixel of each other."""
+        shown = [ko for ko in objs if ko is not None]
+        return any(
+            self._meet(a, pa, views[a], b, pb, views[b])
+            for j, (a, pa) in enumerate(shown)
+            for b, pb in shown[j + 1 :]
+        )
+
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
-        """uint8 (B, H, W, 3): the same pixels as `draw(scenes)`."""
+        """uint8 (B, H, W, 3): the same pixels as `draw(scenes)`.
+
+        Every frame starts as one base frame (the table with each slot's most common object of
+        the batch), then, slot by slot where a scene differs from the base, the base object is
+        wiped back to the table and the scene's own is pasted: a batch of edits of one scene
+        touches only the pixels its edits change.
+        """
         n = self.size_px
+        memo: dict = {}
+        placed = [self._placement(s, memo) for s in scenes]
+        views = self.top_views([ko[0] for objs in placed if objs for ko in objs if ko is not None])
+        fallback = [i for i, objs in enumerate(placed) if objs is None or self._clash(objs, views)]
+        drawn = set(fallback)
+        ok = [objs for i, objs in enumerate(placed) if i not in drawn]
+        base: list = [None] * len(SLOTS)
+        if ok:
+            for k in range(len(SLOTS)):
+                counts: dict = {}
+                for objs in ok:
+                    counts[objs[k]] = counts.get(objs[k], 0) + 1
+                base[k] = max(counts, key=counts.get)  # ties: the first seen
+            if self._clash(base, views):  # the commonest objects meet: start from the table
+                base = [None] * len(SLOTS)
+        frame = self.table.copy()
+        flat_frame = frame.reshape(n * n, 3)
+        for ko in base:
+            if ko is not None:
+                idx, vals = self._pixels(views[ko[0]], *ko[1])
+                flat_frame[idx] = vals
         out = np.empty((len(scenes), n, n, 3), np.uint8)
-        out[:] = self.table
-        placed = [self._placement(s) for s in scenes]
-        views = self.top_views([k for objs in placed if objs for k, _ in objs])
-        groups: dict[tuple[Key, tuple[int, int]], list[int]] = {}
-        fallback = []
+        out[:] = frame
+        wipes: dict[int, list[int]] = {}  # slot -> scenes whose slot differs from the base's
+        pastes: dict[tuple[Key, tuple[int, int]], list[int]] = {}
         for i, objs in enumerate(placed):
-            if objs is None or any(
-                self._meet(a, pa, views[a], b, pb, views[b])
-                for j, (a, pa) in enumerate(objs)
-                for b, pb in objs[j + 1 :]
-            ):
-                fallback.append(i)
+            if i in drawn:
                 continue
-            for ko in objs:
-                groups.setdefault(ko, []).append(i)
+            for k, ko in enumerate(objs):
+                if ko != base[k]:
+                    if base[k] is not None:
+                        wipes.setdefault(k, []).append(i)
+                    if ko is not None:
+                        pastes.setdefault(ko, []).append(i)
         flat = out.reshape(len(scenes), n * n, 3)
-        for (key, (pr, pc)), rows in groups.items():
+        table = self.table.reshape(n * n, 3)
+        for k, rows in wipes.items():  # every wipe before any paste: a new object may stand
+            idx, _ = self._pixels(views[base[k][0]], *base[k][1])  # where a base one stood
+            flat[np.asarray(rows)[:, None], idx[None, :]] = table[idx][None]
+        for (key, (pr, pc)), rows in pastes.items():
             idx, vals = self._pixels(views[key], pr, pc)
             flat[np.asarray(rows)[:, None], idx[None, :]] = vals[None]
         if fallback:

@@ -103,8 +103,10 @@ class TabletopWorld(Benchmark):
                 return camera.render_batch(scenes)
             if self._compositor is None:
                 from sim.tabletop.composite import Compositor
+                from sim.tabletop.view_store import store_path
 
-                self._compositor = Compositor(camera.render_batch, TK.make_scene())
+                store = store_path(camera.table.model, camera.size_px)
+                self._compositor = Compositor(camera.render_batch, TK.make_scene(), store=store)
             return self._compositor.render_batch(scenes)
 
     # -- dynamics -----------------------------------------------------------------------------

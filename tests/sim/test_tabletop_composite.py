@@ -126,10 +126,10 @@ def _same_search(got, want) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_planted_double_shift_gives_the_same_pair_with_either_renderer(world, mujoco_world, seed):
-    from dfa_viz.bench.tabletop import double_shift_task
+    from dfa_viz.bench.tabletop import planted_shift_task
 
     policy = base_policy(world)
-    task = double_shift_task(world, seed)
+    task = planted_shift_task(world, seed, 2)
     demo = world.demonstrate(task)
     config = SearchConfig.for_world(world)
     got = counterfactual_search(world, policy, task.scene, demo, config=config)
