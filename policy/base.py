@@ -49,7 +49,8 @@ FRAME_TOLERANCE = 0.5  # mean frame colours may differ this much (of 255) betwee
 
 
 def machine_name() -> str:
-    """The processor and core count, as one line (e.g. "Intel(R) Xeon(R) Processor; 2 logical cores")."""
+    """The processor and core count, as one line (e.g. "Intel(R) Xeon(R) Processor; 2 logical
+    cores")."""
     cpu = platform.processor() or platform.machine()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
