@@ -6,7 +6,7 @@ import itertools
 import math
 from collections.abc import Callable, Iterator, Mapping
 
-from sim.core import PRESENCE, Change, ConceptSpace, Edit, Scene, effective, single_changes
+from sim.core import PRESENCE, PRESENT, Change, ConceptSpace, Edit, Scene, effective, single_changes
 
 
 def singles(space: ConceptSpace, scene: Scene) -> list[Edit]:
@@ -56,11 +56,10 @@ def combinations(
         return sum(prior.get(c, float("inf")) for c in edit.changes)
 
     groups: tuple[list[Edit], list[Edit]] = ([], [])
-    for combo in itertools.combinations(changes, size):
-        if len({(c.slot, c.concept) for c in combo}) < size:
-            continue
-        edit = Edit(frozenset(combo))
-        if effective(scene, edit):
+    there = {o.slot: o.present for o in scene.objects}
+    for combo in _distinct(changes, size):
+        if _shows(combo, there):  # what `effective` says, before an Edit is built
+            edit = Edit(frozenset(combo))
             groups[0 if edit.is_presence else 1].append(edit)
     for group in groups:
         group.sort(key=cost)  # stable: ties keep enumeration order
@@ -75,9 +74,34 @@ def _distinct(changes: list[Change], size: int) -> Iterator[tuple[Change, ...]]:
     """itertools.combinations(changes, size), in its order, less those that change one
     (slot, concept) twice."""
     keys = [(c.slot, c.concept) for c in changes]
+    if size == 2:  # the common size, without a set per pair: a concept's changes come together
+        end = list(range(1, len(keys) + 1))  # end of each change's run of its (slot, concept)
+        for i in range(len(keys) - 2, -1, -1):
+            if keys[i] == keys[i + 1]:
+                end[i] = end[i + 1]
+        if len(set(keys)) == sum(1 for i, e in enumerate(end) if i == 0 or end[i - 1] != e):
+            for i, a in enumerate(changes):
+                for j in range(end[i], len(changes)):
+                    yield a, changes[j]
+            return
     for idx in itertools.combinations(range(len(changes)), size):
         if len({keys[i] for i in idx}) == size:
             yield tuple(changes[i] for i in idx)
+
+
+def _shows(combo: tuple[Change, ...], there: Mapping[str, bool]) -> bool:
+    """sim.core.effective on a combination of changes: no change of looks to an object that is
+    absent after it."""
+    for c in combo:
+        if c.concept == PRESENCE:
+            continue
+        present = there[c.slot]
+        for d in combo:
+            if d.slot == c.slot and d.concept == PRESENCE:
+                present = d.new == PRESENT
+        if not present:
+            return False
+    return True
 
 
 def _cheapest_first(
