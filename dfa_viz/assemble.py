@@ -7,7 +7,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from dfa_viz.configs import RunArgs
+from dfa_viz.configs import PriorArgs, RunArgs
 from dfa_viz.loop import RunRecord, run_loop
 from dfa_viz.overlay import failed_saliency
 from dfa_viz.recording import write_recording
@@ -18,6 +18,7 @@ from policy.outside import load
 from policy.saliency import check_explainable, check_method
 from policy.train import BASE, training_tasks
 from search import SearchConfig
+from search.prior import LearnedPrior
 from sim import get_world
 from sim.core import (
     PRESENCE,
@@ -85,6 +86,38 @@ def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path
     return base_folder(world, seed=seed), rate
 
 
+def fit_prior(args: PriorArgs, *, progress: bool = True) -> tuple[LearnedPrior, int]:
+    """Fit a LearnedPrior on `args.tasks` planted size-2 tasks and write it to `args.out`;
+    returns it and the seeds tried."""
+    from search.planted import fit_on_planted
+
+    world = get_world(args.world)
+    if not world.benchmark:
+        raise UserError(f"{world.name} has no training tasks to plant in; give a paper world")
+    check_seed(args.first_seed, "--first-seed")
+    if args.tasks < 1:
+        raise UserError(f"--tasks must be at least 1, not {args.tasks}")
+    if args.out.is_dir():
+        raise UserError(f"--out {args.out} is a folder; give the prior's file name")
+    policy = base_policy(world)
+    bar = tqdm(total=args.tasks, desc=f"{world.name}: planted tasks", disable=not progress)
+    seeds: list[int] = []
+
+    def on_seed(seed: int, accepted: bool) -> None:
+        seeds.append(seed)
+        bar.update(int(accepted))
+
+    try:
+        prior, _ = fit_on_planted(
+            world, policy, n=args.tasks, first_seed=args.first_seed, on_seed=on_seed
+        )
+    finally:
+        bar.close()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    prior.save(args.out)
+    return prior, len(seeds)
+
+
 def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     """The whole loop once, recorded to OUT/<world>-<shift>-seed<seed>.rrd (the file is
     replaced only by a run that completes)."""
@@ -102,6 +135,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     if args.saliency is not None:
         check_method(args.saliency)
     overrides = parse_labels(world, args.label)
+    learned = None if args.prior is None else LearnedPrior.load(args.prior, world)
     policy = load(args.policy, world) if args.policy is not None else base_policy(world)
     policy.fits(world)
     if args.saliency is not None:
@@ -142,7 +176,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
             task,
             user,
             seed=args.seed,
-            search=SearchConfig.for_world(world, max_size=args.max_size),
+            search=replace(SearchConfig.for_world(world, max_size=args.max_size), learned=learned),
             config=args.adapt,
             on_progress=on_progress,
             on_loss=on_loss,

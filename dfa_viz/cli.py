@@ -1,6 +1,7 @@
 """The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
 
-    dfa run | train | worlds | bench | demo | serve | sweep | experiment q2 | experiment explain
+    dfa run | train | worlds | bench | prior | demo | serve | sweep | experiment q2
+    dfa experiment explain
     dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
@@ -24,6 +25,7 @@ from dfa_viz.configs import (
     DemoArgs,
     ExplainArgs,
     NewStudyArgs,
+    PriorArgs,
     Q2Args,
     RunArgs,
     ServeArgs,
@@ -48,6 +50,7 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[TrainArgs, tyro.conf.subcommand("train")],
     Annotated[WorldsArgs, tyro.conf.subcommand("worlds")],
     Annotated[BenchArgs, tyro.conf.subcommand("bench")],
+    Annotated[PriorArgs, tyro.conf.subcommand("prior")],
     Annotated[DemoArgs, tyro.conf.subcommand("demo")],
     Annotated[ServeArgs, tyro.conf.subcommand("serve")],
     Annotated[SweepArgs, tyro.conf.subcommand("sweep")],
@@ -121,6 +124,16 @@ def bench(args: BenchArgs) -> None:
     run_bench(args)
 
 
+def prior(args: PriorArgs) -> None:
+    from dfa_viz.assemble import fit_prior
+
+    learned, seeds = fit_prior(args)
+    print(
+        f"learned prior for {learned.world} fitted on {args.tasks} planted tasks "
+        f"({seeds} seeds tried), written to {args.out}"
+    )
+
+
 def demo(args: DemoArgs) -> None:
     from dfa_viz.app.address import serving_port
 
@@ -185,6 +198,7 @@ HANDLERS = {
     TrainArgs: train,
     WorldsArgs: worlds,
     BenchArgs: bench,
+    PriorArgs: prior,
     DemoArgs: demo,
     ServeArgs: serve,
     Q2Args: experiment,

@@ -121,6 +121,9 @@ class RunArgs:
     without test tasks, the demonstration's first scene is the task."""
     max_size: int = 2
     """The largest edit the search tries (concept changes)."""
+    prior: Path | None = None
+    """A learned search prior for this world (`dfa prior` writes one, JSON): it orders the
+    search's edits by what past searches found; the same edits are tried and found."""
     saliency: str | None = None
     """Also record where the failed rollout's frames push the policy off the demonstration:
     a heat layer `rollouts/failed/saliency` over its frames, by captum's grad_cam (cheap),
@@ -177,6 +180,28 @@ class BenchArgs:
     """Also measure the web page in Chromium (a minute or two)."""
     out: Path = Path("benchmarks") / "latest.md"
     """The Markdown report."""
+    prior_tasks: int = 100
+    """Planted size-2 tasks per paper world on which the learned search prior is measured
+    against enumeration and the first-step prior (dfa_viz.bench.prior)."""
+
+
+@dataclass(frozen=True)
+class PriorArgs:
+    """Fit a learned search prior on planted size-2 tasks of a world and write it as JSON.
+
+    Each planted task is a training layout with two looks changed that only an edit of two
+    changes explains (search.planted); the prior learns from those searches which single
+    changes belong to the answer, and `dfa run --prior FILE` orders its search by it.
+    """
+
+    world: str = "nav2d"
+    """A paper world (one with training tasks): nav2d, doorkey or tabletop."""
+    tasks: int = 50
+    """Planted tasks to fit on (the tabletop takes a few seconds each)."""
+    first_seed: int = 0
+    """Seeds are tried from here up until that many tasks are accepted."""
+    out: Path = Path("priors") / "prior.json"
+    """Where the prior is written (replaced whole)."""
 
 
 @dataclass(frozen=True)

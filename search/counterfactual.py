@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from policy.model import Policy
 from search.enumerate import combinations, count
 from search.lockstep import Candidate, rollout_lockstep
+from search.prior import LearnedPrior, unedited_candidate
 from sim.core import Change, Scene, Trajectory, UserError, World
 
 # (size, candidates done, candidates in this size) -> None
@@ -34,6 +35,10 @@ class SearchConfig:
     """When all sizes together have at most this many edits, roll them out in one pass."""
     max_candidates: int | None = None
     """Stop after this many candidates (the most promising first); None = no limit."""
+    learned: LearnedPrior | None = None
+    """A prior learned from past searches (search.prior), used instead of the first-step
+    distances when set: edits of size >= 2 by the summed -log p of their changes, presence
+    edits or not. It only orders: the same edits are tried and the same ones found."""
 
     @classmethod
     def for_world(cls, world: World, *, max_size: int = 2) -> SearchConfig:
@@ -126,6 +131,8 @@ def counterfactual_search(
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
     eps = world.epsilon if config.epsilon is None else config.epsilon
+    if config.learned is not None:
+        config.learned.check_world(world)
     if not config.first_only:
         sizes = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
         if sum(sizes.values()) <= config.joint_below:
@@ -134,8 +141,17 @@ def counterfactual_search(
     prior: dict[Change, float] = {}
     totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
     for size in range(1, config.max_size + 1):
+        if size == 2 and config.learned is not None:
+            unedited = unedited_candidate(world, policy, scene, demo, epsilon=eps)
+            singles = [c for c in tried if c.edit.size == 1]
+            prior = config.learned.costs(world.space, singles, unedited)
+        ordered = size > 1 and (config.prior or config.learned is not None)
         edits = combinations(
-            world.space, scene, size, prior=prior if (config.prior and size > 1) else None
+            world.space,
+            scene,
+            size,
+            prior=prior if ordered else None,
+            grouped=config.learned is None,
         )  # generated as they are tried
         totals[size] = total = count(world.space, scene, size)
         done, valid = 0, []

@@ -26,6 +26,7 @@ def combinations(
     size: int,
     *,
     prior: Mapping[Change, float] | None = None,
+    grouped: bool = True,
 ) -> Iterator[Edit]:
     """Effective edits of exactly `size` changes: those with a presence change first.
 
@@ -35,6 +36,8 @@ def combinations(
     order is enumeration order. From size LAZY_FROM on, edits are generated lazily, and with a
     prior in ascending cost alone, presence or not (the tabletop has 83,856 size-3 edits with
     a presence change: trying them all first took 45-60 s before a size-3 cause of looks).
+    grouped=False drops the presence-first group below LAZY_FROM too: one order by cost alone
+    (a learned prior that prices presence changes itself, search.prior).
     """
     presence, values = single_changes(space, scene)
     changes = presence + values
@@ -60,7 +63,7 @@ def combinations(
     for combo in _distinct(changes, size):
         if _shows(combo, there):  # what `effective` says, before an Edit is built
             edit = Edit(frozenset(combo))
-            groups[0 if edit.is_presence else 1].append(edit)
+            groups[0 if edit.is_presence and grouped else 1].append(edit)
     for group in groups:
         group.sort(key=cost)  # stable: ties keep enumeration order
         yield from group

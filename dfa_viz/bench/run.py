@@ -8,12 +8,13 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from dfa_viz.bench.prior import bench_prior, prior_rows
 from dfa_viz.bench.search import bench_world
 from dfa_viz.bench.sweep import SWEPT, sweep_rows
 from dfa_viz.bench.timing import machine
 from dfa_viz.configs import BenchArgs
 from policy import base_policy
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import files
 
 
@@ -67,6 +68,9 @@ def run_bench(args: BenchArgs) -> list[tuple[str, str, str, str]]:
     for name in worlds:
         if name in SWEPT:
             for row in sweep_rows(name):
+                add(*row)
+        if name in PAPER_WORLDS:  # the learned search prior on planted size-2 tasks
+            for row in prior_rows(bench_prior(name, n_eval=args.prior_tasks)):
                 add(*row)
         if name == "tabletop":
             from dfa_viz.bench.tabletop import bench_rows, bench_tabletop

@@ -301,3 +301,25 @@ def test_a_given_demonstration_is_used(tmp_path, nav, nav_policy):
     wrong = nav.demonstrate(nav.train_task()).save(tmp_path / "wrong.npz")
     proc = dfa("run", "--shift", "distractor_ti", "--demo", str(wrong))
     assert proc.returncode == 2 and "starts from another scene" in proc.stderr
+
+
+def test_prior_command_writes_a_prior_that_run_checks(capsys, tmp_path):
+    from search.prior import LearnedPrior
+    from sim import get_world
+
+    path = tmp_path / "doorkey.json"
+    assert main(["prior", "--world", "doorkey", "--tasks", "2", "--out", str(path)]) == 0
+    assert f"written to {path}" in capsys.readouterr().out
+    assert LearnedPrior.load(path, get_world("doorkey")).world == "doorkey"
+    line = one_line_error(capsys, "run", "--world", "nav2d", "--prior", str(path))
+    assert "the learned prior is for world 'doorkey', not 'nav2d'" in line
+    assert "no learned prior at" in one_line_error(capsys, "run", "--prior", str(tmp_path / "no"))
+    (tmp_path / "bad.json").write_text('{"format": "something else"}')
+    line = one_line_error(capsys, "run", "--prior", str(tmp_path / "bad.json"))
+    assert "malformed learned prior" in line
+    (tmp_path / "cut.json").write_text(path.read_text()[:40])
+    assert "cannot read learned prior" in one_line_error(
+        capsys, "run", "--prior", str(tmp_path / "cut.json")
+    )
+    line = one_line_error(capsys, "prior", "--tasks", "0", "--out", str(tmp_path / "p.json"))
+    assert "--tasks must be at least 1" in line
