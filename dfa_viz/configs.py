@@ -166,12 +166,7 @@ class BenchArgs:
     (load, slider latency, finetune round trip).
     """
 
-    worlds: tuple[str, ...] = (
-        "nav2d",
-        "doorkey",
-        "tabletop",
-        "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12",
-    )
+    worlds: tuple[str, ...] = (*PAPER_WORLDS, "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12")
     """Which worlds to measure (the MiniGrid one with the stable-baselines3 agent of
     docs/examples)."""
     repeats: int = 3
@@ -323,9 +318,9 @@ class Q2Args:
     resumes where it stopped. The same seeds give the same runs.csv whichever backend ran them.
     """
 
-    worlds: Annotated[
-        tuple[Literal["nav2d", "doorkey", "tabletop"], ...], tyro.conf.arg(aliases=("--world",))
-    ] = PAPER_WORLDS
+    worlds: Annotated[tuple[Literal[PAPER_WORLDS], ...], tyro.conf.arg(aliases=("--world",))] = (
+        PAPER_WORLDS
+    )
     """Which of the paper's worlds."""
     shift: Literal["object", "distractor", "both"] = "both"
     """object, distractor, or both."""

@@ -170,6 +170,8 @@ def prior_rows(r: dict) -> list[tuple[str, str, str, bool | None]]:
 if __name__ == "__main__":
     import sys
 
-    for world_name in sys.argv[1:] or ("nav2d", "doorkey", "tabletop"):
+    from sim import PAPER_WORLDS
+
+    for world_name in sys.argv[1:] or PAPER_WORLDS:
         for what, value, goal, ok in prior_rows(bench_prior(world_name)):
             print(f"{what}: {value} {goal} {'' if ok is None else ('met' if ok else 'NOT met')}")
