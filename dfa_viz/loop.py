@@ -220,7 +220,7 @@ def counterfactual_rollouts(
     cands = result.counterfactuals[:MAX_TIES]
     if not cands:
         return []
-    scenes = [world.apply(task.scene, c.edit) for c in cands]
+    scenes = world.apply_batch(task.scene, [c.edit for c in cands])
     return world.rollout_batch([task] * len(cands), policy, scenes=scenes)
 
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from policy.model import Policy
 from search.enumerate import combinations, count
 from search.lockstep import Candidate, rollout_lockstep
+from search.pauses import paused
 from search.prior import LearnedPrior, unedited_candidate
 from sim.core import Change, Scene, Trajectory, UserError, World
 
@@ -115,6 +116,7 @@ class SearchResult:
         return f"counterfactual of size {self.size}: {edits}"
 
 
+@paused
 def counterfactual_search(
     world: World,
     policy: Policy,

@@ -53,20 +53,20 @@ def combinations(
             )
         return
 
-    def cost(edit: Edit) -> float:
-        if prior is None:
-            return 0.0
-        return sum(prior.get(c, float("inf")) for c in edit.changes)
-
-    groups: tuple[list[Edit], list[Edit]] = ([], [])
+    # each change's prior once, by its place in `changes` (a sum of two costs is the same
+    # number in either order: the order is that of the summed prior)
+    costs = [0.0] * len(changes) if prior is None else [prior.get(c, math.inf) for c in changes]
+    groups: tuple[list[tuple[float, Edit]], list[tuple[float, Edit]]] = ([], [])
     there = {o.slot: o.present for o in scene.objects}
-    for combo in _distinct(changes, size):
+    for idx in _distinct_at(changes, size):
+        combo = tuple(changes[i] for i in idx)
         if _shows(combo, there):  # what `effective` says, before an Edit is built
             edit = Edit(frozenset(combo))
-            groups[0 if edit.is_presence and grouped else 1].append(edit)
+            cost = costs[idx[0]] if size == 1 else sum(costs[i] for i in idx)
+            groups[0 if edit.is_presence and grouped else 1].append((cost, edit))
     for group in groups:
-        group.sort(key=cost)  # stable: ties keep enumeration order
-        yield from group
+        group.sort(key=lambda ce: ce[0])  # stable: ties keep enumeration order
+        yield from (e for _, e in group)
 
 
 def _edit(combo: tuple[Change, ...]) -> Edit:
@@ -76,6 +76,12 @@ def _edit(combo: tuple[Change, ...]) -> Edit:
 def _distinct(changes: list[Change], size: int) -> Iterator[tuple[Change, ...]]:
     """itertools.combinations(changes, size), in its order, less those that change one
     (slot, concept) twice."""
+    for idx in _distinct_at(changes, size):
+        yield tuple(changes[i] for i in idx)
+
+
+def _distinct_at(changes: list[Change], size: int) -> Iterator[tuple[int, ...]]:
+    """_distinct's combinations as the places of their changes in `changes`."""
     keys = [(c.slot, c.concept) for c in changes]
     if size == 2:  # the common size, without a set per pair: a concept's changes come together
         end = list(range(1, len(keys) + 1))  # end of each change's run of its (slot, concept)
@@ -83,13 +89,13 @@ def _distinct(changes: list[Change], size: int) -> Iterator[tuple[Change, ...]]:
             if keys[i] == keys[i + 1]:
                 end[i] = end[i + 1]
         if len(set(keys)) == sum(1 for i, e in enumerate(end) if i == 0 or end[i - 1] != e):
-            for i, a in enumerate(changes):
+            for i in range(len(changes)):
                 for j in range(end[i], len(changes)):
-                    yield a, changes[j]
+                    yield i, j
             return
     for idx in itertools.combinations(range(len(changes)), size):
         if len({keys[i] for i in idx}) == size:
-            yield tuple(changes[i] for i in idx)
+            yield idx
 
 
 def _shows(combo: tuple[Change, ...], there: Mapping[str, bool]) -> bool:

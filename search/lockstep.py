@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from policy.model import Policy, probabilities
+from search.pauses import paused
 from sim.core import Edit, Scene, Trajectory, UserError, World
 
 
@@ -70,6 +71,7 @@ def compared_steps(world: World, demo: Trajectory) -> int:
     return demo.horizon
 
 
+@paused
 def rollout_lockstep(
     world: World,
     policy: Policy,
@@ -91,7 +93,7 @@ def rollout_lockstep(
     matches = np.zeros((n, horizon), bool)
     dropped = np.full(n, -1, np.int64)
     live = np.arange(n)
-    scenes = [world.apply(scene, e) for e in edits]
+    scenes = world.apply_batch(scene, edits)
     for t in range(steps):
         if len(live) == 0:
             break

@@ -82,7 +82,7 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
     singles_s, cands = best_of(run_singles, repeats)
 
     def edit_render():
-        return world.render_batch([world.apply(task.scene, e) for e in edits])
+        return world.render_batch(world.apply_batch(task.scene, edits))
 
     render_s, _ = best_of(edit_render, repeats)
 

@@ -10,7 +10,7 @@ from sim.core.concepts import (
     UserConcept,
 )
 from sim.core.demonstration import check_demonstration, require_success
-from sim.core.edit import EMPTY, Change, Edit, apply, effective, single_changes
+from sim.core.edit import EMPTY, Change, Edit, apply, apply_many, effective, single_changes
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
 from sim.core.scene import Obj, Scene
@@ -56,6 +56,7 @@ __all__ = [
     "UserError",
     "World",
     "apply",
+    "apply_many",
     "carrying_shift",
     "check_demonstration",
     "check_layouts",

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from sim.core.concepts import ABSENT, PRESENCE, PRESENT, ConceptSpace
 from sim.core.errors import UserError
-from sim.core.scene import Scene
+from sim.core.scene import Obj, Scene
 
 
 @dataclass(frozen=True, order=True)
@@ -33,6 +34,8 @@ class Edit:
     changes: frozenset[Change]
 
     def __post_init__(self) -> None:
+        if len(self.changes) < 2:
+            return
         keys = [(c.slot, c.concept) for c in self.changes]
         if len(keys) != len(set(keys)):
             raise UserError(f"an edit changes each (slot, concept) at most once: {sorted(keys)}")
@@ -75,19 +78,51 @@ EMPTY = Edit(frozenset())
 def apply(space: ConceptSpace, scene: Scene, edit: Edit) -> Scene:
     """The editor f: the scene with every change of `edit` made. Checks each change's `old`."""
     for ch in edit.ordered:
-        space.check_value(ch.slot, ch.concept, ch.new)
-        obj = scene.obj(ch.slot)
-        if ch.concept == PRESENCE:
-            now = PRESENT if obj.present else ABSENT
-            if now != ch.old:
-                raise UserError(f"{ch}: slot {ch.slot!r} is {now}, not {ch.old}")
-            obj = type(obj)(obj.slot, ch.new == PRESENT, obj.values, obj.pos)
-        else:
-            if obj.value(ch.concept) != ch.old:
-                raise UserError(f"{ch}: {ch.slot}.{ch.concept} is {obj.value(ch.concept)!r}")
-            obj = obj.with_value(ch.concept, ch.new)
-        scene = scene.with_obj(obj)
+        scene = scene.with_obj(_changed(space, scene.obj(ch.slot), ch))
     return scene
+
+
+def _changed(space: ConceptSpace, obj: Obj, ch: Change) -> Obj:
+    """obj with one change of its slot made (UserError unless `ch.old` is what obj holds)."""
+    space.check_value(ch.slot, ch.concept, ch.new)
+    if ch.concept == PRESENCE:
+        now = PRESENT if obj.present else ABSENT
+        if now != ch.old:
+            raise UserError(f"{ch}: slot {ch.slot!r} is {now}, not {ch.old}")
+        return type(obj)(obj.slot, ch.new == PRESENT, obj.values, obj.pos)
+    if obj.value(ch.concept) != ch.old:
+        raise UserError(f"{ch}: {ch.slot}.{ch.concept} is {obj.value(ch.concept)!r}")
+    return obj.with_value(ch.concept, ch.new)
+
+
+def apply_many(space: ConceptSpace, scene: Scene, edits: Sequence[Edit]) -> list[Scene]:
+    """[apply(space, scene, e) for e in edits], the same scenes: each slot's changes are made
+    once per batch (an edit's objects are shared with the other edits that change that slot
+    the same way, and the unchanged ones are the scene's own)."""
+    where = {o.slot: i for i, o in enumerate(scene.objects)}
+    made: dict[tuple[Change, ...], Obj] = {}  # one slot's changes, in order -> its object
+
+    def slot_after(changes: tuple[Change, ...]) -> Obj:
+        obj = made.get(changes)
+        if obj is None:
+            before = slot_after(changes[:-1]) if len(changes) > 1 else scene.obj(changes[0].slot)
+            obj = made[changes] = _changed(space, before, changes[-1])
+        return obj
+
+    out = []
+    for edit in edits:
+        objects = list(scene.objects)
+        if len(edit.changes) == 1:
+            (ch,) = edit.changes
+            objects[where[ch.slot]] = slot_after((ch,))
+        else:
+            by_slot: dict[str, list[Change]] = {}
+            for ch in edit.ordered:
+                by_slot.setdefault(ch.slot, []).append(ch)
+            for slot, changes in by_slot.items():
+                objects[where[slot]] = slot_after(tuple(changes))
+        out.append(Scene(scene.world, tuple(objects), scene.agent))
+    return out
 
 
 def single_changes(space: ConceptSpace, scene: Scene) -> tuple[list[Change], list[Change]]:

@@ -10,7 +10,7 @@ from typing import Literal
 import numpy as np
 
 from sim.core.concepts import ConceptSpace
-from sim.core.edit import Edit, apply
+from sim.core.edit import Edit, apply, apply_many
 from sim.core.errors import UserError
 from sim.core.scene import Scene
 from sim.core.task import SHIFTS, Reward, Task
@@ -98,6 +98,10 @@ class World(abc.ABC):
     def apply(self, scene: Scene, edit: Edit) -> Scene:
         """The editor f on this world's concept space."""
         return apply(self.space, scene, edit)
+
+    def apply_batch(self, scene: Scene, edits: Sequence[Edit]) -> list[Scene]:
+        """[self.apply(scene, e) for e in edits], each slot's changes made once per batch."""
+        return apply_many(self.space, scene, edits)
 
     # -- dynamics -----------------------------------------------------------------------------
     @abc.abstractmethod

@@ -39,6 +39,10 @@ CACHE_BYTES = 32 * 2**20  # all 29 x 81 views of the default appearances: about 
 GRID_TOL_PX = 1e-6  # a coordinate this close to a whole pixel is on the grid
 Draw = Callable[[Sequence[Scene]], np.ndarray]  # scenes -> uint8 (B, H, W, 3), MuJoCo's
 Key = tuple[str, str]  # (shape, appearance)
+Group = tuple[tuple[Key, tuple[int, int]], ...]  # touching objects' (view, pixel), slot order
+PIXEL = np.dtype((np.void, 3))  # one RGB pixel
+FLAT_MEMO = 8192  # views whose flat pixel offsets are kept (a few KiB each)
+GROUP_VIEWS = 4096  # views of touching groups kept (a few KiB each), least recently used out
 
 
 @dataclass(frozen=True)
@@ -118,7 +122,12 @@ class Compositor:
         self.bytes = 0
         self.drawn = 0  # views drawn so far (for benchmarks)
         self.fell_back = 0  # scenes handed to MuJoCo whole so far (for benchmarks)
-        self._meets: dict[tuple, bool] = {}  # (key a, key b, d row, d col) -> footprints meet
+        self.groups: OrderedDict[Group, TopView] = OrderedDict()  # not kept on disk
+        self.groups_drawn = 0  # groups of touching objects drawn so far (for benchmarks)
+        self._meets: dict[tuple, bool] = {}  # (footprint a, b, d row, d col) -> they meet
+        self._footprints: dict[tuple, int] = {}  # (top, left, shape, mask bytes) -> number
+        self._fid: dict[int, tuple] = {}  # id(view) -> (view, its footprint's number)
+        self._flat: dict[int, tuple] = {}  # id(view) -> (view, flat offsets, box, colours)
         self._empty = Scene(
             WORLD, tuple(Obj(s, False, like.obj(s).values, like.obj(s).pos) for s in SLOTS), (0.0,)
         )
@@ -129,7 +138,11 @@ class Compositor:
     # -- the cache -----------------------------------------------------------------------------
     def clear(self) -> None:
         self.views.clear()
+        self.groups.clear()
         self._meets.clear()
+        self._footprints.clear()
+        self._fid.clear()
+        self._flat.clear()
         self.bytes = 0
 
     def reopen(self) -> None:
@@ -206,10 +219,13 @@ class Compositor:
             objs[i] = Obj(SLOTS[i], True, (("shape", shape), ("colour", colour)), pose(area))
         return Scene(WORLD, tuple(objs), (0.0,))
 
-    def _cut(self, img: np.ndarray, area: str, *, whole: bool) -> TopView | None:
+    def _cut(
+        self, img: np.ndarray, area: str, *, whole: bool, clipped: bool = False
+    ) -> TopView | None:
         """The view of the object at `area`'s centre: the pixels of its frame quadrant (the
         whole frame when `whole`) that differ from the table; None when they reach an edge of
-        that window (the object may spill out of it)."""
+        that window (the object may spill out of it), unless `clipped` (a view that holds
+        only where it was drawn)."""
         n, half = self.size_px, self.size_px // 2
         x, y = AREAS[area]
         r0, c0 = half + round(-y * self.px_per_m), half + round(x * self.px_per_m)
@@ -223,7 +239,8 @@ class Compositor:
         else:
             top, bottom = rows[0] + rr.min(), rows[0] + rr.max() + 1
             left, right = cols[0] + cc.min(), cols[0] + cc.max() + 1
-        if top == rows[0] or bottom == rows[1] or left == cols[0] or right == cols[1]:
+        edge = top == rows[0] or bottom == rows[1] or left == cols[0] or right == cols[1]
+        if edge and not clipped:
             return None
         crop = (slice(top, bottom), slice(left, right))
         mask = (img[crop] != self.table[crop]).any(axis=-1)  # (h, w)
@@ -238,10 +255,10 @@ class Compositor:
         )
 
     # -- frames --------------------------------------------------------------------------------
-    def _meet(self, a: Key, pa: tuple[int, int], va: TopView, b: Key, pb, vb: TopView) -> bool:
+    def _meet(self, va: TopView, pa: tuple[int, int], vb: TopView, pb: tuple[int, int]) -> bool:
         """Whether the grown footprints of view a at pixel pa and view b at pb share a pixel."""
         dr, dc = pb[0] - pa[0], pb[1] - pa[1]
-        memo = (a, b, dr, dc)
+        memo = (self._footprint(va), self._footprint(vb), dr, dc)
         hit = self._meets.get(memo)
         if hit is None:
             # b's grown mask in a's grown mask's frame
@@ -250,10 +267,10 @@ class Compositor:
             r = vb.top + dr - va.top
             c = vb.left + dc - va.left
             r0, r1, c0, c1 = max(0, r), min(ha, r + hb), max(0, c), min(wa, c + wb)
-            hit = bool(
-                r0 < r1
+            hit = (
+                r0 < r1  # the boxes overlap: look at the pixels
                 and c0 < c1
-                and (va.near[r0:r1, c0:c1] & vb.near[r0 - r : r1 - r, c0 - c : c1 - c]).any()
+                and bool((va.near[r0:r1, c0:c1] & vb.near[r0 - r : r1 - r, c0 - c : c1 - c]).any())
             )
             if len(self._meets) > 100_000:
                 self._meets.clear()
@@ -285,10 +302,56 @@ class Compositor:
         """Whether two of a scene's objects (placements) come within a pixel of each other."""
         shown = [ko for ko in objs if ko is not None]
         return any(
-            self._meet(a, pa, views[a], b, pb, views[b])
+            self._meet(views[a], pa, views[b], pb)
             for j, (a, pa) in enumerate(shown)
             for b, pb in shown[j + 1 :]
         )
+
+    def _touching(self, objs: Sequence, views: dict[Key, TopView]) -> list[tuple[int, ...]]:
+        """The slots of each group of two or more objects that come within a pixel of each
+        other, directly or through others of the group (slot order); [] when none do."""
+        shown = [k for k, ko in enumerate(objs) if ko is not None]
+        group = {k: k for k in shown}  # slot -> the first slot of its group
+        for j, a in enumerate(shown):
+            for b in shown[j + 1 :]:
+                (ka, pa), (kb, pb) = objs[a], objs[b]
+                if group[b] != group[a] and self._meet(views[ka], pa, views[kb], pb):
+                    old, new = max(group[a], group[b]), min(group[a], group[b])
+                    group = {k: new if g == old else g for k, g in group.items()}
+        out: dict[int, list[int]] = {}
+        for k in shown:
+            out.setdefault(group[k], []).append(k)
+        return [tuple(g) for g in out.values() if len(g) > 1]
+
+    def group_views(self, groups: Sequence[Group]) -> dict[Group, TopView]:
+        """The views of groups of touching objects, each as MuJoCo draws the group alone where
+        it stands (relative to the frame's centre), drawing the missing ones."""
+        got: dict[Group, TopView] = {}
+        missing = []
+        for g in dict.fromkeys(groups):
+            v = self.groups.get(g)
+            if v is None:
+                missing.append(g)
+            else:
+                self.groups.move_to_end(g)
+                got[g] = v
+        if missing:
+            images = self.draw([self._alone(g) for g in missing])  # (G, H, W, 3)
+            for g, img in zip(missing, images, strict=True):
+                got[g] = self.groups[g] = self._cut(img, "centre", whole=True, clipped=True)
+            while len(self.groups) > GROUP_VIEWS:
+                self.groups.popitem(last=False)
+            self.groups_drawn += len(missing)
+        return got
+
+    def _alone(self, group: Group) -> Scene:
+        """A scene of the group's objects where they stand, one per slot in the group's order
+        (every slot has the same meshes and materials, drawn in slot order)."""
+        objs = list(self._empty.objects)
+        for i, ((shape, colour), (r, c)) in enumerate(group):
+            xy = (c / self.px_per_m, -r / self.px_per_m)
+            objs[i] = Obj(SLOTS[i], True, (("shape", shape), ("colour", colour)), pose(xy))
+        return Scene(WORLD, tuple(objs), (0.0,))
 
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
         """uint8 (B, H, W, 3): the same pixels as `draw(scenes)`.
@@ -296,15 +359,22 @@ class Compositor:
         Every frame starts as one base frame (the table with each slot's most common object of
         the batch), then, slot by slot where a scene differs from the base, the base object is
         wiped back to the table and the scene's own is pasted: a batch of edits of one scene
-        touches only the pixels its edits change.
+        touches only the pixels its edits change. Objects that come within a pixel of each
+        other are pasted as one group, drawn by MuJoCo once per batch of scenes that hold it.
         """
         n = self.size_px
         memo: dict = {}
         placed = [self._placement(s, memo) for s in scenes]
         views = self.top_views([ko[0] for objs in placed if objs for ko in objs if ko is not None])
-        fallback = [i for i, objs in enumerate(placed) if objs is None or self._clash(objs, views)]
-        drawn = set(fallback)
-        ok = [objs for i, objs in enumerate(placed) if i not in drawn]
+        whole = [i for i, objs in enumerate(placed) if objs is None]  # off the grid
+        touching: dict[int, list[tuple[int, ...]]] = {}
+        for i, objs in enumerate(placed):
+            if objs is not None and self._clash(objs, views):
+                touching[i] = self._touching(objs, views)
+        grouped = self.group_views(
+            [tuple(placed[i][k] for k in g) for i, gs in touching.items() for g in gs]
+        )
+        ok = [objs for objs in placed if objs is not None]
         base: list = [None] * len(SLOTS)
         if ok:
             for k in range(len(SLOTS)):
@@ -315,7 +385,7 @@ class Compositor:
             if self._clash(base, views):  # the commonest objects meet: start from the table
                 base = [None] * len(SLOTS)
         frame = self.table.copy()
-        flat_frame = frame.reshape(n * n, 3)
+        flat_frame = frame.reshape(n * n * 3).view(PIXEL)  # (H * W,)
         for ko in base:
             if ko is not None:
                 idx, vals = self._pixels(views[ko[0]], *ko[1])
@@ -323,36 +393,75 @@ class Compositor:
         out = np.empty((len(scenes), n, n, 3), np.uint8)
         out[:] = frame
         wipes: dict[int, list[int]] = {}  # slot -> scenes whose slot differs from the base's
-        pastes: dict[tuple[Key, tuple[int, int]], list[int]] = {}
+        pastes: dict[tuple[Key, tuple[int, int]], list[int]] = {}  # (view, pixel) -> scenes
+        group_pastes: dict[Group, list[int]] = {}  # group -> scenes
+        skip = set(whole)
         for i, objs in enumerate(placed):
-            if i in drawn:
+            if i in skip:
                 continue
+            members = set()
+            for g in touching.get(i, ()):
+                members.update(g)
+                group_pastes.setdefault(tuple(objs[k] for k in g), []).append(i)
             for k, ko in enumerate(objs):
-                if ko != base[k]:
+                if ko != base[k] or k in members:
                     if base[k] is not None:
                         wipes.setdefault(k, []).append(i)
-                    if ko is not None:
+                    if ko is not None and k not in members:
                         pastes.setdefault(ko, []).append(i)
-        flat = out.reshape(len(scenes), n * n, 3)
-        table = self.table.reshape(n * n, 3)
+        # a pixel as one 3-byte item: the scatters below move whole pixels, twice as fast
+        flat = out.reshape(len(scenes), n * n * 3).view(PIXEL)  # (B, H * W)
+        table = self.table.reshape(n * n * 3).view(PIXEL)  # (H * W,)
         for k, rows in wipes.items():  # every wipe before any paste: a new object may stand
             idx, _ = self._pixels(views[base[k][0]], *base[k][1])  # where a base one stood
-            flat[np.asarray(rows)[:, None], idx[None, :]] = table[idx][None]
-        for (key, (pr, pc)), rows in pastes.items():
-            idx, vals = self._pixels(views[key], pr, pc)
-            flat[np.asarray(rows)[:, None], idx[None, :]] = vals[None]
-        if fallback:
-            self.fell_back += len(fallback)
-            out[fallback] = self.draw([scenes[i] for i in fallback])
+            _scatter(flat, rows, idx, table[idx])
+        for ko, rows in pastes.items():
+            _scatter(flat, rows, *self._pixels(views[ko[0]], *ko[1]))
+        for g, rows in group_pastes.items():
+            _scatter(flat, rows, *self._pixels(grouped[g], 0, 0))
+        if whole:
+            self.fell_back += len(whole)
+            out[whole] = self.draw([scenes[i] for i in whole])
         return out
+
+    def _footprint(self, v: TopView) -> int:
+        """A number for v's grown footprint and its place, shared by every view of the same
+        (most often: one shape in any colour)."""
+        hit = self._fid.get(id(v))
+        if hit is None or hit[0] is not v:
+            if len(self._fid) >= FLAT_MEMO:
+                self._fid.clear()
+            if len(self._footprints) >= FLAT_MEMO:  # the numbers start again: so do the meets
+                self._footprints.clear()
+                self._fid.clear()
+                self._meets.clear()
+            shape = (v.top, v.left, v.near.shape, v.near.tobytes())
+            hit = self._fid[id(v)] = (v, self._footprints.setdefault(shape, len(self._footprints)))
+        return hit[1]
 
     def _pixels(self, v: TopView, pr: int, pc: int) -> tuple[np.ndarray, np.ndarray]:
         """Flat pixel indices (N,) of view v at pixel (pr, pc) inside the frame, and their
-        colours uint8 (N, 3)."""
+        colours (N,) PIXEL."""
         n, half = self.size_px, self.size_px // 2
-        rows = v.rows.astype(np.intp) + (pr + half)
-        cols = v.cols.astype(np.intp) + (pc + half)
+        hit = self._flat.get(id(v))
+        if hit is None or hit[0] is not v:
+            if len(self._flat) >= FLAT_MEMO:
+                self._flat.clear()
+            rows, cols = v.rows.astype(np.intp), v.cols.astype(np.intp)
+            box = (rows.min(), rows.max(), cols.min(), cols.max()) if len(rows) else (0, 0, 0, 0)
+            hit = self._flat[id(v)] = (v, rows * n + cols, box, v.colours.reshape(-1).view(PIXEL))
+        _, offsets, (r0, r1, c0, c1), colours = hit
+        r, c = pr + half, pc + half
+        if r + r0 >= 0 and r + r1 < n and c + c0 >= 0 and c + c1 < n:  # wholly inside
+            return offsets + (r * n + c), colours
+        rows, cols = v.rows.astype(np.intp) + r, v.cols.astype(np.intp) + c
         inside = (rows >= 0) & (rows < n) & (cols >= 0) & (cols < n)
-        if inside.all():
-            return rows * n + cols, v.colours
-        return rows[inside] * n + cols[inside], v.colours[inside]
+        return rows[inside] * n + cols[inside], colours[inside]
+
+
+def _scatter(flat: np.ndarray, rows: list[int], idx: np.ndarray, vals: np.ndarray) -> None:
+    """flat[r, idx] = vals for every r in rows; flat (B, P) and vals (N,) PIXEL, idx (N,)."""
+    if len(rows) == 1:
+        np.put(flat[rows[0]], idx, vals)  # a third of a fancy assignment's time
+    else:
+        flat[np.asarray(rows)[:, None], idx[None, :]] = vals[None]

@@ -9,6 +9,7 @@ pose writes model and data fields; nothing is recompiled.
 
 from __future__ import annotations
 
+import hashlib
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -216,11 +217,19 @@ def build_spec() -> mujoco.MjSpec:
     return spec
 
 
+def _digest(model: mujoco.MjModel) -> str:
+    """16 hex digits of a compiled model's bytes and MuJoCo's version."""
+    mjb = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, mjb)
+    return hashlib.sha256(mujoco.__version__.encode() + mjb.tobytes()).hexdigest()[:16]
+
+
 class Table:
     """The compiled model and its data, with a scene written in place by `load`."""
 
     def __init__(self) -> None:
         self.model: mujoco.MjModel = build_spec().compile()
+        self.digest = _digest(self.model)  # as compiled: `load` and the camera change it later
         self.data = mujoco.MjData(self.model)
         m = self.model
 

@@ -8,7 +8,6 @@ file and drops the file when they differ (another GL driver, say).
 
 from __future__ import annotations
 
-import hashlib
 import io
 import zipfile
 from collections.abc import Mapping
@@ -20,14 +19,10 @@ from sim.core import files
 from sim.tabletop.composite import Key, TopView
 
 
-def store_path(model, size_px: int) -> Path:
-    """Where the views of `model` (a compiled mujoco.MjModel) at `size_px` are kept."""
-    import mujoco
-
-    mjb = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
-    mujoco.mj_saveModel(model, None, mjb)
-    digest = hashlib.sha256(mujoco.__version__.encode() + mjb.tobytes()).hexdigest()[:16]
-    return files.cache_dir() / "tabletop-views" / f"{size_px}px-{digest}.npz"
+def store_path(table, size_px: int) -> Path:
+    """Where the views of `table` (sim.tabletop.model.Table) at `size_px` are kept: named by
+    its model as compiled, whatever scene it holds now."""
+    return files.cache_dir() / "tabletop-views" / f"{size_px}px-{table.digest}.npz"
 
 
 def save(path: Path, views: Mapping[Key, TopView]) -> None:

@@ -105,7 +105,7 @@ class TabletopWorld(Benchmark):
                 from sim.tabletop.composite import Compositor
                 from sim.tabletop.view_store import store_path
 
-                store = store_path(camera.table.model, camera.size_px)
+                store = store_path(camera.table, camera.size_px)
                 self._compositor = Compositor(camera.render_batch, TK.make_scene(), store=store)
             return self._compositor.render_batch(scenes)
 

@@ -1,3 +1,5 @@
+import itertools
+
 import numpy as np
 import pytest
 
@@ -31,6 +33,28 @@ def test_apply_checks_old_values_and_names(nav):
         nav.apply(scene, Edit.of(Change("goal", "colour", "blue", "green")))
     added = nav.apply(scene, Edit.of(Change("distractor", PRESENCE, ABSENT, PRESENT)))
     assert added.obj("distractor").present and not scene.obj("distractor").present
+
+
+@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+def test_apply_many_gives_what_apply_gives_and_shares_the_unchanged_objects(name):
+    from search import combinations
+    from sim import get_world
+
+    world = get_world(name)
+    scene = world.test_task("distractor_ti", 1).scene
+    edits = [
+        e for k in (1, 2, 3) for e in itertools.islice(combinations(world.space, scene, k), 400)
+    ]
+    got = world.apply_batch(scene, edits)
+    assert got == [world.apply(scene, e) for e in edits]
+    for edit, after in zip(edits, got, strict=True):
+        changed = {c.slot for c in edit.changes}
+        assert all(o is scene.obj(o.slot) for o in after.objects if o.slot not in changed)
+    bad = Edit.of(Change("goal", "colour", "no such colour", "red"))
+    with pytest.raises(UserError):
+        world.apply(scene, bad)
+    with pytest.raises(UserError):
+        world.apply_batch(scene, [*edits[:3], bad])
 
 
 def test_scene_json_round_trip_is_exact(nav):

@@ -149,3 +149,31 @@ def test_a_view_reaching_its_quadrants_edge_is_not_cut_from_a_shared_frame(world
     assert comp._cut(across, "top-left", whole=False) is None
     assert comp._cut(inside, "top-left", whole=False) is not None
     assert comp._cut(across, "centre", whole=True) is not None
+
+
+def test_touching_objects_are_pasted_as_groups_each_drawn_once(world, mujoco_world):
+    """Every edit up to size 2 of an `other` task: the scenes whose objects touch (a distractor
+    added where the object stands) are MuJoCo's frames, with each group drawn once."""
+    from search import combinations
+
+    policy = base_policy(world)
+    task, _ = failing_test_task(world, policy, "other", 0)
+    edits = [e for k in (1, 2) for e in combinations(world.space, task.scene, k)]
+    scenes = world.apply_batch(task.scene, edits)
+    comp = Compositor(mujoco_world._parts()[1].render_batch, TK.make_scene())
+    got = np.concatenate(
+        [comp.render_batch(scenes[i : i + 1024]) for i in range(0, len(scenes), 1024)]
+    )
+    memo: dict = {}
+    placed = [comp._placement(s, memo) for s in scenes]
+    views = comp.top_views([ko[0] for objs in placed for ko in objs if ko is not None])
+    touching = [i for i, objs in enumerate(placed) if comp._clash(objs, views)]
+    assert len(touching) >= 100 and comp.fell_back == 0
+    groups = {
+        tuple(placed[i][k] for k in g) for i in touching for g in comp._touching(placed[i], views)
+    }
+    assert comp.groups_drawn == len(groups) < len(touching)
+    want = mujoco_world.render_batch([scenes[i] for i in touching])
+    assert np.array_equal(got[touching], want)
+    sample = [i for i in range(0, len(scenes), 97) if i not in set(touching)]
+    assert np.array_equal(got[sample], mujoco_world.render_batch([scenes[i] for i in sample]))

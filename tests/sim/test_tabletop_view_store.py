@@ -10,6 +10,7 @@ import sim
 from sim.tabletop import tasks as TK
 from sim.tabletop import view_store
 from sim.tabletop.composite import Compositor
+from sim.tabletop.model import Table
 from sim.tabletop.world import TabletopWorld
 from tests.sim.test_tabletop_composite import _random_scenes
 
@@ -59,8 +60,15 @@ def test_an_unreadable_file_is_no_views(tmp_path, content):
     assert view_store.load(tmp_path / "missing.npz") == {}
 
 
-def test_the_file_is_named_for_the_model(mujoco_world):
+def test_the_file_is_named_for_the_model_as_compiled(mujoco_world):
+    """The same file in every process: whatever scene the model holds when it is named."""
     table = mujoco_world._parts()[0]
-    path = view_store.store_path(table.model, 80)
-    assert path == view_store.store_path(table.model, 80) != view_store.store_path(table.model, 64)
+    path = view_store.store_path(table, 80)
+    assert path == view_store.store_path(table, 80) != view_store.store_path(table, 64)
     assert path.suffix == ".npz" and path.parent.name == "tabletop-views"
+    scene = mujoco_world.test_task("other", 3).scene
+    mujoco_world.render_batch([scene])  # the model now holds another scene's looks
+    fresh = Table()
+    assert view_store.store_path(fresh, 80) == path
+    fresh.load(scene)
+    assert view_store.store_path(fresh, 80) == path
