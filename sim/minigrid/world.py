@@ -27,6 +27,7 @@ from sim.core import Benchmark, Key, Scene, Task, Trajectory, UserError
 from sim.minigrid import concepts as C
 from sim.minigrid import tasks as TK
 from sim.minigrid.expert import Planner
+from sim.minigrid.frames import TileFrames
 from sim.minigrid.state import Layouts
 
 SHIFTS = ("object_ti", "distractor_ti", "other")
@@ -104,6 +105,7 @@ class MiniGridWorld(Benchmark):
         )
         self.obs_shape = tuple(int(v) for v in frame.shape)
         self.layouts = Layouts(self._make, self.space, self.name)
+        self.tiles = TileFrames(tile)
         self.planner = Planner(self)
 
     def _make(self):
@@ -112,13 +114,15 @@ class MiniGridWorld(Benchmark):
     # -- appearance ---------------------------------------------------------------------------
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
         """uint8 (B, H, W, 3): MiniGrid's get_frame of each scene, as its RGB wrappers show it."""
+        if self.view == "full":  # the same pixels from MiniGrid's tiles (sim.minigrid.frames)
+            with self.layouts.lock:
+                cells = np.stack([self.tiles.cells(self.layouts.restore(s)[0]) for s in scenes])
+            return self.tiles.frames(cells)
         out = np.empty((len(scenes), *self.obs_shape), np.uint8)
         with self.layouts.lock:
             for b, scene in enumerate(scenes):
                 env, _ = self.layouts.restore(scene)
-                out[b] = env.get_frame(
-                    highlight=env.highlight, tile_size=self.tile, agent_pov=self.view == "partial"
-                )
+                out[b] = env.get_frame(highlight=env.highlight, tile_size=self.tile, agent_pov=True)
         return out
 
     # -- dynamics -----------------------------------------------------------------------------

@@ -4,6 +4,8 @@ from that space, and the breadth-first expert solves every task it is given."""
 
 from __future__ import annotations
 
+import itertools
+
 import gymnasium
 import numpy as np
 import pytest
@@ -38,6 +40,31 @@ def test_frames_are_what_the_rgb_wrappers_show_a_policy(world):
         obs, _ = env.reset(seed=seed)
         assert obs.shape == world.obs_shape and obs.dtype == np.uint8
         np.testing.assert_array_equal(world.render(world.train_task(seed).scene), obs)
+
+
+def test_batched_frames_are_minigrids_own_frames(world):
+    """Every edit up to size 2 of a task of each shift, and the states of the expert's rollout
+    from each edited scene, batched (sim.minigrid.frames) and by env.get_frame one at a time."""
+    from search import combinations
+
+    scenes = []
+    for shift in world.shifts:
+        task = world.test_task(shift, 0)
+        edits = [
+            e
+            for k in (1, 2)
+            for e in itertools.islice(combinations(world.space, task.scene, k), 60)
+        ]
+        scenes += world.apply_batch(task.scene, edits)
+        scenes += list(world.demonstrate(task).scenes)
+    got = world.render_batch(scenes)  # (B, H, W, 3)
+    with world.layouts.lock:
+        for scene, frame in zip(scenes, got, strict=True):
+            env, _ = world.layouts.restore(scene)
+            want = env.get_frame(
+                highlight=env.highlight, tile_size=world.tile, agent_pov=world.view == "partial"
+            )
+            np.testing.assert_array_equal(frame, want)
 
 
 def test_stepping_is_the_environments_own_step(world):
