@@ -396,6 +396,7 @@ class Compositor:
         pastes: dict[tuple[Key, tuple[int, int]], list[int]] = {}  # (view, pixel) -> scenes
         group_pastes: dict[Group, list[int]] = {}  # group -> scenes
         skip = set(whole)
+        covered = [self._covers(views, b) for b in base]
         for i, objs in enumerate(placed):
             if i in skip:
                 continue
@@ -405,7 +406,7 @@ class Compositor:
                 group_pastes.setdefault(tuple(objs[k] for k in g), []).append(i)
             for k, ko in enumerate(objs):
                 if ko != base[k] or k in members:
-                    if base[k] is not None:
+                    if base[k] is not None and (k in members or not covered[k](ko)):
                         wipes.setdefault(k, []).append(i)
                     if ko is not None and k not in members:
                         pastes.setdefault(ko, []).append(i)
@@ -424,9 +425,28 @@ class Compositor:
             out[whole] = self.draw([scenes[i] for i in whole])
         return out
 
+    def _covers(self, views: dict[Key, TopView], base) -> Callable[[object], bool]:
+        """Whether a placement's pixels are exactly the base placement's (the same footprint
+        at the same pixel): pasting it then overwrites every pixel of the base's, and the
+        base need not be wiped first."""
+        if base is None:
+            return lambda ko: False
+        mine = self._footprint(views[base[0]])
+        memo: dict = {}
+
+        def covers(ko) -> bool:
+            if ko is None or ko[1] != base[1]:
+                return False
+            hit = memo.get(ko[0])
+            if hit is None:
+                hit = memo[ko[0]] = self._footprint(views[ko[0]]) == mine
+            return hit
+
+        return covers
+
     def _footprint(self, v: TopView) -> int:
-        """A number for v's grown footprint and its place, shared by every view of the same
-        (most often: one shape in any colour)."""
+        """A number for v's pixels and grown footprint and their place, shared by every view of
+        the same (most often: one shape in any colour)."""
         hit = self._fid.get(id(v))
         if hit is None or hit[0] is not v:
             if len(self._fid) >= FLAT_MEMO:
@@ -435,7 +455,14 @@ class Compositor:
                 self._footprints.clear()
                 self._fid.clear()
                 self._meets.clear()
-            shape = (v.top, v.left, v.near.shape, v.near.tobytes())
+            shape = (
+                v.top,
+                v.left,
+                v.near.shape,
+                v.near.tobytes(),
+                v.rows.tobytes(),
+                v.cols.tobytes(),
+            )
             hit = self._fid[id(v)] = (v, self._footprints.setdefault(shape, len(self._footprints)))
         return hit[1]
 
