@@ -17,6 +17,8 @@ from dfa_viz.bench.timing import best_of
 from policy import Policy
 from search import Candidate
 
+MIN_S = 0.2  # a search and its bound are each timed over at least this long (best run)
+
 
 def step_batches(passes: Sequence[Sequence[Candidate]]) -> list[int]:
     """The batch size of every forward pass of a search: per lockstep pass (the candidates
@@ -45,11 +47,11 @@ def forward_bound_s(
 ) -> float:
     """Seconds the policy's forward passes over `batches` take (best of `repeats`), each pass
     on the first frames uint8 (N, H, W, 3) (N >= the largest batch), split into the policy's
-    chunks as the search's are."""
+    chunks as the search's are; runs repeated for at least MIN_S in all."""
     assert len(frames) >= max(batches), (len(frames), max(batches))
 
     def run() -> None:
         for b in batches:
             policy.outputs(frames[:b])
 
-    return best_of(run, repeats)[0]
+    return best_of(run, repeats, min_s=MIN_S)[0]

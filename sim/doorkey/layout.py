@@ -91,8 +91,26 @@ def _cell(pos: tuple[float, ...]) -> Cell:
     return (int(pos[0]), int(pos[1]))
 
 
+_PARSED: dict[int, tuple[Scene, State]] = {}  # id(scene) -> (scene, its State), lately parsed
+PARSED_KEPT = 4096
+_OBJ = {c: i for i, c in enumerate(OBJ_COLOURS)}
+_LAVA = {c: i for i, c in enumerate(LAVA_COLOURS)}
+
+
 def parse(scene: Scene) -> State:
-    """The State of a doorkey Scene (its objects must be in SPACE's slot order)."""
+    """The State of a doorkey Scene (its objects must be in SPACE's slot order). A scene met
+    again soon (rendered, then checked for the end, then stepped) is parsed once."""
+    hit = _PARSED.get(id(scene))
+    if hit is not None and hit[0] is scene:
+        return hit[1]
+    if len(_PARSED) >= PARSED_KEPT:
+        _PARSED.clear()
+    st = _parse(scene)
+    _PARSED[id(scene)] = (scene, st)
+    return st
+
+
+def _parse(scene: Scene) -> State:
     assert scene.world == WORLD and len(scene.objects) == len(SLOT_NAMES), (
         f"expected a {WORLD} scene with slots {SLOT_NAMES}, got {scene.world} "
         f"{[o.slot for o in scene.objects]}"
@@ -109,12 +127,8 @@ def parse(scene: Scene) -> State:
         _cell(key.pos),
         _cell(door.pos),
         _cell(goal.pos),
-        tuple((_cell(o.pos), LAVA_COLOURS.index(o.values[0][1])) for o in lavas if o.present),
-        (
-            OBJ_COLOURS.index(key.values[0][1]),
-            OBJ_COLOURS.index(door.values[0][1]),
-            OBJ_COLOURS.index(goal.values[0][1]),
-        ),
+        tuple((_cell(o.pos), _LAVA[o.values[0][1]]) for o in lavas if o.present),
+        (_OBJ[key.values[0][1]], _OBJ[door.values[0][1]], _OBJ[goal.values[0][1]]),
     )
 
 

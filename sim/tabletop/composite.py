@@ -17,8 +17,11 @@ one), and kept in a cache bounded in bytes, least recently used out first, and o
 when every present object stands upright on the pixel grid and no two footprints, each grown by
 one pixel, meet: then no pixel mixes two objects (the anti-aliased edge of a view is its mix
 with the table, which the table frame reproduces) and the frame is MuJoCo's own, pixel for
-pixel. Any other scene (objects overlapping, stacked, tilted or carried, or off the grid) is
-drawn by MuJoCo, through the same `draw`.
+pixel. Objects whose grown footprints meet (overlapping, or a distractor added where the
+object stands) are a group: MuJoCo draws the group alone, where it stands, once, and it is
+pasted like one view (a group's pixels mix only with the table and with each other). A scene
+with an object off the grid (stacked, tilted, carried) is drawn whole by MuJoCo, through the
+same `draw`.
 """
 
 from __future__ import annotations
@@ -125,7 +128,7 @@ class Compositor:
         self.groups: OrderedDict[Group, TopView] = OrderedDict()  # not kept on disk
         self.groups_drawn = 0  # groups of touching objects drawn so far (for benchmarks)
         self._meets: dict[tuple, bool] = {}  # (footprint a, b, d row, d col) -> they meet
-        self._footprints: dict[tuple, int] = {}  # (top, left, shape, mask bytes) -> number
+        self._footprints: dict[tuple, int] = {}  # a view's place, masks and pixels -> number
         self._fid: dict[int, tuple] = {}  # id(view) -> (view, its footprint's number)
         self._flat: dict[int, tuple] = {}  # id(view) -> (view, flat offsets, box, colours)
         self._empty = Scene(
@@ -360,7 +363,7 @@ class Compositor:
         the batch), then, slot by slot where a scene differs from the base, the base object is
         wiped back to the table and the scene's own is pasted: a batch of edits of one scene
         touches only the pixels its edits change. Objects that come within a pixel of each
-        other are pasted as one group, drawn by MuJoCo once per batch of scenes that hold it.
+        other are pasted as one group, which MuJoCo draws alone the first time it is met.
         """
         n = self.size_px
         memo: dict = {}

@@ -38,3 +38,25 @@ def test_a_minigrid_search_with_an_outside_policy_is_timed_against_naive_and_the
 
     assert r["candidates"] <= r["evaluated"] <= r["candidates"] * get_world(MINIGRID).horizon
     assert r["bound_s"] > 0 and r["to_bound"] == r["batched_s"] / r["bound_s"]
+
+
+def test_short_figures_are_timed_over_at_least_min_s():
+    import time
+
+    from dfa_viz.bench.timing import MAX_RUNS, best_of
+
+    runs = []
+
+    def work():
+        runs.append(1)
+        time.sleep(0.001)
+        return len(runs)
+
+    best, last = best_of(work, 3)
+    assert len(runs) == last == 3 and best >= 0.001
+    runs.clear()
+    best, last = best_of(work, 3, min_s=0.03)
+    assert 10 <= len(runs) == last <= 31 and 0.001 <= best < 0.03
+    runs.clear()
+    best_of(lambda: runs.append(1), 1, min_s=60.0)
+    assert len(runs) == MAX_RUNS

@@ -4,7 +4,7 @@ finds the same counterfactuals with either renderer.
 The bound: none. Over every random scene below, the maximum and the mean absolute difference
 per channel between the composited frame and MuJoCo's are 0 (both with MuJoCo's 4x MSAA, the
 same for both: an anti-aliased edge is a view's mix with the table, which the table frame
-reproduces; scenes where two objects' edges could mix are drawn by MuJoCo).
+reproduces; objects whose edges could mix are drawn together by MuJoCo, as a group).
 """
 
 from __future__ import annotations
