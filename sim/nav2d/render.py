@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 SIZE_PX = 36
@@ -74,10 +76,22 @@ def render_objects(glyphs: list[int], colours: list[int]) -> np.ndarray:
 
 
 def draw_agents(layers: np.ndarray, agent_xy: np.ndarray) -> np.ndarray:
-    """White agent discs over object layers: (B, 36, 36, 3) uint8, (B, 2) -> (B, 36, 36, 3)."""
+    """White agent discs over object layers: (B, 36, 36, 3) uint8, (B, 2) -> (B, 36, 36, 3).
+    Frames whose agents stand in one place share one disc (a search's candidates start
+    together)."""
     out = layers.copy()
-    dx = _CENTRES[None, None, :] - agent_xy[:, 0, None, None]  # (B, 1, 36)
-    dy = _CENTRES[::-1][None, :, None] - agent_xy[:, 1, None, None]  # (B, 36, 1)
-    disc = dx**2 + dy**2 <= AGENT_RADIUS**2  # (B, 36, 36)
-    out[disc] = 255
+    frames: dict[tuple[float, float], list[int]] = {}  # agent's place -> frames
+    for b, (x, y) in enumerate(agent_xy.tolist()):
+        frames.setdefault((x, y), []).append(b)
+    for (x, y), rows in frames.items():
+        r, c = disc_at(x, y)  # (N,), (N,)
+        out[np.asarray(rows)[:, None], r[None], c[None]] = 255
     return out
+
+
+@functools.lru_cache(maxsize=4096)
+def disc_at(x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) int of the pixels whose centres lie within the agent's radius of (x, y)."""
+    dx = _CENTRES[None, :] - x  # (1, 36)
+    dy = _CENTRES[::-1][:, None] - y  # (36, 1)
+    return np.nonzero(dx**2 + dy**2 <= AGENT_RADIUS**2)

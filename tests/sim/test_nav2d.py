@@ -65,3 +65,21 @@ def test_vectorised_step_matches_single_steps(nav):
     batched = nav.step_batch(scenes, actions)
     single = [nav.step_batch([s], a[None])[0] for s, a in zip(scenes, actions, strict=True)]
     assert batched == single
+
+
+def test_agent_discs_are_drawn_where_each_frame_has_its_agent():
+    """Frames sharing an agent's place share one disc; every disc is the pixels whose centres
+    lie within the agent's radius."""
+    from sim.nav2d import render as R
+
+    rng = np.random.default_rng(0)
+    xy = np.round(rng.uniform(-6, 6, size=(40, 2)), 1)
+    xy[20:] = xy[:20]  # each place twice
+    layers = rng.integers(0, 200, size=(40, 36, 36, 3), dtype=np.uint8)
+    got = R.draw_agents(layers, xy)
+    centres = (np.arange(36) + 0.5) / R.PX_PER_UNIT - R.ARENA
+    for b, (x, y) in enumerate(xy):
+        disc = (centres[None, :] - x) ** 2 + (centres[::-1][:, None] - y) ** 2 <= R.AGENT_RADIUS**2
+        want = layers[b].copy()
+        want[disc] = 255
+        np.testing.assert_array_equal(got[b], want)
