@@ -28,75 +28,20 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sim.core import Obj, Scene
 from sim.tabletop.tasks import AREAS, VIEW_HALF_M, WORLD, pose
+from sim.tabletop.top_view import PIXEL, Key, TopView, ViewIndex, grid_pixel, grow, same
 
 SLOTS = ("object", "goal", "distractor0", "distractor1")
 QUADRANTS = ("top-left", "top-right", "bottom-left", "bottom-right")  # one slot each
 CACHE_BYTES = 32 * 2**20  # all 29 x 81 views of the default appearances: about 3 MiB
-GRID_TOL_PX = 1e-6  # a coordinate this close to a whole pixel is on the grid
 Draw = Callable[[Sequence[Scene]], np.ndarray]  # scenes -> uint8 (B, H, W, 3), MuJoCo's
-Key = tuple[str, str]  # (shape, appearance)
 Group = tuple[tuple[Key, tuple[int, int]], ...]  # touching objects' (view, pixel), slot order
-PIXEL = np.dtype((np.void, 3))  # one RGB pixel
-FLAT_MEMO = 8192  # views whose flat pixel offsets are kept (a few KiB each)
 GROUP_VIEWS = 4096  # views of touching groups kept (a few KiB each), least recently used out
-
-
-@dataclass(frozen=True)
-class TopView:
-    """One object's pixels seen from above: those that differ from the bare table.
-
-    rows, cols int16 (N,): each pixel's place relative to the pixel the object stands on;
-    colours uint8 (N, 3); near bool (h, w): the footprint grown by one pixel (8-neighbourhood),
-    its first row and column at (top, left) relative to the object's pixel.
-    """
-
-    rows: np.ndarray  # (N,) int16
-    cols: np.ndarray  # (N,) int16
-    colours: np.ndarray  # (N, 3) uint8
-    top: int
-    left: int
-    near: np.ndarray  # (h, w) bool
-
-    @property
-    def nbytes(self) -> int:
-        return self.rows.nbytes + self.cols.nbytes + self.colours.nbytes + self.near.nbytes
-
-
-def grid_pixel(o: Obj, px_per_m: float) -> tuple[int, int] | None:
-    """(row, col) of an upright object on the pixel grid, relative to the frame's centre (rows
-    grow downwards, y upwards); None for any other pose."""
-    x, y, z, qw, qx, qy, qz = o.pos
-    if z != 0.0 or (qw, qx, qy, qz) != (1.0, 0.0, 0.0, 0.0):
-        return None
-    c, r = x * px_per_m, -y * px_per_m
-    rc, rr = round(c), round(r)
-    if abs(c - rc) > GRID_TOL_PX or abs(r - rr) > GRID_TOL_PX:
-        return None
-    return int(rr), int(rc)
-
-
-def _same(a: TopView, b: TopView) -> bool:
-    return (a.top, a.left) == (b.top, b.left) and all(
-        np.array_equal(x, y)
-        for x, y in ((a.rows, b.rows), (a.cols, b.cols), (a.colours, b.colours), (a.near, b.near))
-    )
-
-
-def _grow(mask: np.ndarray) -> np.ndarray:
-    """bool (h + 2, w + 2): mask grown by one pixel in all eight directions."""
-    h, w = mask.shape
-    out = np.zeros((h + 2, w + 2), bool)
-    for dr in range(3):
-        for dc in range(3):
-            out[dr : dr + h, dc : dc + w] |= mask
-    return out
 
 
 class Compositor:
@@ -127,10 +72,7 @@ class Compositor:
         self.fell_back = 0  # scenes handed to MuJoCo whole so far (for benchmarks)
         self.groups: OrderedDict[Group, TopView] = OrderedDict()  # not kept on disk
         self.groups_drawn = 0  # groups of touching objects drawn so far (for benchmarks)
-        self._meets: dict[tuple, bool] = {}  # (footprint a, b, d row, d col) -> they meet
-        self._footprints: dict[tuple, int] = {}  # a view's place, masks and pixels -> number
-        self._fid: dict[int, tuple] = {}  # id(view) -> (view, its footprint's number)
-        self._flat: dict[int, tuple] = {}  # id(view) -> (view, flat offsets, box, colours)
+        self.index = ViewIndex(size_px)
         self._empty = Scene(
             WORLD, tuple(Obj(s, False, like.obj(s).values, like.obj(s).pos) for s in SLOTS), (0.0,)
         )
@@ -142,10 +84,7 @@ class Compositor:
     def clear(self) -> None:
         self.views.clear()
         self.groups.clear()
-        self._meets.clear()
-        self._footprints.clear()
-        self._fid.clear()
-        self._flat.clear()
+        self.index.clear()
         self.bytes = 0
 
     def reopen(self) -> None:
@@ -166,7 +105,7 @@ class Compositor:
             fresh = self.top_views(probe)
         finally:
             self.store = store
-        if all(_same(fresh[k], kept[k]) for k in probe):
+        if all(same(fresh[k], kept[k]) for k in probe):
             for k, v in kept.items():
                 if k not in self.views:
                     self._keep(k, v)
@@ -180,15 +119,7 @@ class Compositor:
 
     def top_views(self, keys: Sequence[Key]) -> dict[Key, TopView]:
         """The views of `keys`, drawing the missing ones (four per MuJoCo frame)."""
-        got: dict[Key, TopView] = {}
-        missing = []
-        for k in dict.fromkeys(keys):
-            v = self.views.get(k)
-            if v is None:
-                missing.append(k)
-            else:
-                self.views.move_to_end(k)
-                got[k] = v
+        got, missing = _known(self.views, keys)
         frames = [missing[i : i + len(QUADRANTS)] for i in range(0, len(missing), len(QUADRANTS))]
         if frames:
             images = self.draw([self._studio(f, QUADRANTS) for f in frames])  # (F, H, W, 3)
@@ -254,32 +185,10 @@ class Compositor:
             img[crop][mask],  # (N, 3)
             int(top - r0 - 1),
             int(left - c0 - 1),
-            _grow(mask),
+            grow(mask),
         )
 
     # -- frames --------------------------------------------------------------------------------
-    def _meet(self, va: TopView, pa: tuple[int, int], vb: TopView, pb: tuple[int, int]) -> bool:
-        """Whether the grown footprints of view a at pixel pa and view b at pb share a pixel."""
-        dr, dc = pb[0] - pa[0], pb[1] - pa[1]
-        memo = (self._footprint(va), self._footprint(vb), dr, dc)
-        hit = self._meets.get(memo)
-        if hit is None:
-            # b's grown mask in a's grown mask's frame
-            ha, wa = va.near.shape
-            hb, wb = vb.near.shape
-            r = vb.top + dr - va.top
-            c = vb.left + dc - va.left
-            r0, r1, c0, c1 = max(0, r), min(ha, r + hb), max(0, c), min(wa, c + wb)
-            hit = (
-                r0 < r1  # the boxes overlap: look at the pixels
-                and c0 < c1
-                and bool((va.near[r0:r1, c0:c1] & vb.near[r0 - r : r1 - r, c0 - c : c1 - c]).any())
-            )
-            if len(self._meets) > 100_000:
-                self._meets.clear()
-            self._meets[memo] = hit
-        return hit
-
     def _placement(
         self, scene: Scene, memo: dict
     ) -> list[tuple[Key, tuple[int, int]] | None] | None:
@@ -305,7 +214,7 @@ class Compositor:
         """Whether two of a scene's objects (placements) come within a pixel of each other."""
         shown = [ko for ko in objs if ko is not None]
         return any(
-            self._meet(views[a], pa, views[b], pb)
+            self.index.meet(views[a], pa, views[b], pb)
             for j, (a, pa) in enumerate(shown)
             for b, pb in shown[j + 1 :]
         )
@@ -318,7 +227,7 @@ class Compositor:
         for j, a in enumerate(shown):
             for b in shown[j + 1 :]:
                 (ka, pa), (kb, pb) = objs[a], objs[b]
-                if group[b] != group[a] and self._meet(views[ka], pa, views[kb], pb):
+                if group[b] != group[a] and self.index.meet(views[ka], pa, views[kb], pb):
                     old, new = max(group[a], group[b]), min(group[a], group[b])
                     group = {k: new if g == old else g for k, g in group.items()}
         out: dict[int, list[int]] = {}
@@ -329,15 +238,7 @@ class Compositor:
     def group_views(self, groups: Sequence[Group]) -> dict[Group, TopView]:
         """The views of groups of touching objects, each as MuJoCo draws the group alone where
         it stands (relative to the frame's centre), drawing the missing ones."""
-        got: dict[Group, TopView] = {}
-        missing = []
-        for g in dict.fromkeys(groups):
-            v = self.groups.get(g)
-            if v is None:
-                missing.append(g)
-            else:
-                self.groups.move_to_end(g)
-                got[g] = v
+        got, missing = _known(self.groups, groups)
         if missing:
             images = self.draw([self._alone(g) for g in missing])  # (G, H, W, 3)
             for g, img in zip(missing, images, strict=True):
@@ -391,7 +292,7 @@ class Compositor:
         flat_frame = frame.reshape(n * n * 3).view(PIXEL)  # (H * W,)
         for ko in base:
             if ko is not None:
-                idx, vals = self._pixels(views[ko[0]], *ko[1])
+                idx, vals = self.index.pixels(views[ko[0]], *ko[1])
                 flat_frame[idx] = vals
         out = np.empty((len(scenes), n, n, 3), np.uint8)
         out[:] = frame
@@ -413,16 +314,15 @@ class Compositor:
                         wipes.setdefault(k, []).append(i)
                     if ko is not None and k not in members:
                         pastes.setdefault(ko, []).append(i)
-        # a pixel as one 3-byte item: the scatters below move whole pixels, twice as fast
         flat = out.reshape(len(scenes), n * n * 3).view(PIXEL)  # (B, H * W)
         table = self.table.reshape(n * n * 3).view(PIXEL)  # (H * W,)
         for k, rows in wipes.items():  # every wipe before any paste: a new object may stand
-            idx, _ = self._pixels(views[base[k][0]], *base[k][1])  # where a base one stood
+            idx, _ = self.index.pixels(views[base[k][0]], *base[k][1])  # where a base one stood
             _scatter(flat, rows, idx, table[idx])
         for ko, rows in pastes.items():
-            _scatter(flat, rows, *self._pixels(views[ko[0]], *ko[1]))
+            _scatter(flat, rows, *self.index.pixels(views[ko[0]], *ko[1]))
         for g, rows in group_pastes.items():
-            _scatter(flat, rows, *self._pixels(grouped[g], 0, 0))
+            _scatter(flat, rows, *self.index.pixels(grouped[g], 0, 0))
         if whole:
             self.fell_back += len(whole)
             out[whole] = self.draw([scenes[i] for i in whole])
@@ -434,7 +334,7 @@ class Compositor:
         base need not be wiped first."""
         if base is None:
             return lambda ko: False
-        mine = self._footprint(views[base[0]])
+        mine = self.index.footprint(views[base[0]])
         memo: dict = {}
 
         def covers(ko) -> bool:
@@ -442,51 +342,24 @@ class Compositor:
                 return False
             hit = memo.get(ko[0])
             if hit is None:
-                hit = memo[ko[0]] = self._footprint(views[ko[0]]) == mine
+                hit = memo[ko[0]] = self.index.footprint(views[ko[0]]) == mine
             return hit
 
         return covers
 
-    def _footprint(self, v: TopView) -> int:
-        """A number for v's pixels and grown footprint and their place, shared by every view of
-        the same (most often: one shape in any colour)."""
-        hit = self._fid.get(id(v))
-        if hit is None or hit[0] is not v:
-            if len(self._fid) >= FLAT_MEMO:
-                self._fid.clear()
-            if len(self._footprints) >= FLAT_MEMO:  # the numbers start again: so do the meets
-                self._footprints.clear()
-                self._fid.clear()
-                self._meets.clear()
-            shape = (
-                v.top,
-                v.left,
-                v.near.shape,
-                v.near.tobytes(),
-                v.rows.tobytes(),
-                v.cols.tobytes(),
-            )
-            hit = self._fid[id(v)] = (v, self._footprints.setdefault(shape, len(self._footprints)))
-        return hit[1]
 
-    def _pixels(self, v: TopView, pr: int, pc: int) -> tuple[np.ndarray, np.ndarray]:
-        """Flat pixel indices (N,) of view v at pixel (pr, pc) inside the frame, and their
-        colours (N,) PIXEL."""
-        n, half = self.size_px, self.size_px // 2
-        hit = self._flat.get(id(v))
-        if hit is None or hit[0] is not v:
-            if len(self._flat) >= FLAT_MEMO:
-                self._flat.clear()
-            rows, cols = v.rows.astype(np.intp), v.cols.astype(np.intp)
-            box = (rows.min(), rows.max(), cols.min(), cols.max()) if len(rows) else (0, 0, 0, 0)
-            hit = self._flat[id(v)] = (v, rows * n + cols, box, v.colours.reshape(-1).view(PIXEL))
-        _, offsets, (r0, r1, c0, c1), colours = hit
-        r, c = pr + half, pc + half
-        if r + r0 >= 0 and r + r1 < n and c + c0 >= 0 and c + c1 < n:  # wholly inside
-            return offsets + (r * n + c), colours
-        rows, cols = v.rows.astype(np.intp) + r, v.cols.astype(np.intp) + c
-        inside = (rows >= 0) & (rows < n) & (cols >= 0) & (cols < n)
-        return rows[inside] * n + cols[inside], colours[inside]
+def _known(cache: OrderedDict, keys: Sequence) -> tuple[dict, list]:
+    """({key: view} of the distinct keys the LRU `cache` holds, now its most recent; the
+    distinct keys it lacks, in order)."""
+    got, missing = {}, []
+    for k in dict.fromkeys(keys):
+        v = cache.get(k)
+        if v is None:
+            missing.append(k)
+        else:
+            cache.move_to_end(k)
+            got[k] = v
+    return got, missing
 
 
 def _scatter(flat: np.ndarray, rows: list[int], idx: np.ndarray, vals: np.ndarray) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.core import files
-from sim.tabletop.composite import Key, TopView
+from sim.tabletop.top_view import Key, TopView
 
 
 def store_path(table, size_px: int) -> Path:

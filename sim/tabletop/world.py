@@ -14,7 +14,7 @@ Success   the object's centre within 0.10 m of the goal's after settling, no dis
 Scene: Obj.pos is the object's pose on the table, (x, y, z, qw, qx, qy, qz) in metres, z = 0
 resting on the table top; it is not part of Phi. agent = (steps taken,). Files: concepts.py,
 catalogue.py, shapes.py, meshes.py, colours.py, textures.py, model.py (the MuJoCo model),
-render.py, composite.py (frames from cached top views), physics.py (dynamics), pose.py,
+render.py, composite.py (frames from cached top views, top_view.py), physics.py (dynamics), pose.py,
 view3d.py, tasks.py (layouts, shifts, the expert's targets), env.py.
 """
 

@@ -13,7 +13,7 @@ from safetensors.torch import load_file, save_file
 from policy import base as B
 from policy import load_policy, save_policy
 from policy.model import ImagePolicy, Policy, PolicyConfig
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
 
@@ -104,7 +104,7 @@ def test_missing_files_and_folders(nav, ckpt, tmp_path):
         load_policy(ckpt, world=nav)
 
 
-@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+@pytest.mark.parametrize("name", PAPER_WORLDS)
 def test_committed_base_policies_match_todays_recipe(name):
     """The weights of record are in the repository, with the recipe they were trained from;
     loading them checks that recipe against today's (no retraining, on any machine)."""

@@ -8,7 +8,7 @@ import pytest
 
 from policy import base_policy, failing_test_task, score
 from policy.evaluate import fresh
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import PRESENT, carrying_shift
 
 # the base policies' mean shifted success on the planted tasks of seeds 0-4 (measured with the
@@ -17,7 +17,7 @@ from sim.core import PRESENT, carrying_shift
 BOUND = 0.4
 
 
-@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+@pytest.mark.parametrize("name", PAPER_WORLDS)
 @pytest.mark.parametrize("shift", ["object_ti", "distractor_ti"])
 def test_every_evaluation_task_carries_the_shift(name, shift):
     world = get_world(name)

@@ -11,10 +11,10 @@ import torch
 
 from policy import base_policy, finetune, score
 from search import counterfactual_search
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
-WORLDS = ["nav2d", "doorkey", "tabletop"]
+WORLDS = list(PAPER_WORLDS)
 
 
 def _nan_policy(world):

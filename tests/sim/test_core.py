@@ -3,6 +3,7 @@ import itertools
 import numpy as np
 import pytest
 
+from sim import PAPER_WORLDS
 from sim.core import ABSENT, PRESENCE, PRESENT, Change, Edit, Scene, Trajectory, UserError
 
 
@@ -35,7 +36,7 @@ def test_apply_checks_old_values_and_names(nav):
     assert added.obj("distractor").present and not scene.obj("distractor").present
 
 
-@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+@pytest.mark.parametrize("name", PAPER_WORLDS)
 def test_apply_many_gives_what_apply_gives_and_shares_the_unchanged_objects(name):
     from search import combinations
     from sim import get_world
