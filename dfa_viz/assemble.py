@@ -14,7 +14,7 @@ from dfa_viz.recording import write_recording
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from policy.base import base_folder
-from policy.outside import load
+from policy.outside import chosen_policy
 from policy.saliency import check_explainable, check_method
 from policy.train import BASE, training_tasks
 from search import SearchConfig
@@ -34,13 +34,6 @@ from sim.core import (
 )
 
 MAX_EDIT_SIZE = 3
-
-
-def check_out(out: Path) -> Path:
-    """An output folder: created if missing; a file of that name is an error."""
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} is a file; give a folder for the recordings")
-    return out
 
 
 def parse_labels(world: World, labels: tuple[str, ...]) -> dict[tuple[str, str], bool]:
@@ -124,7 +117,6 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     world = get_world(args.world)
     check_shift(args.shift)
     check_seed(args.seed)
-    check_out(args.out)
     args.adapt.check()
     if not 1 <= args.max_size <= MAX_EDIT_SIZE:
         raise UserError(
@@ -136,8 +128,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         check_method(args.saliency)
     overrides = parse_labels(world, args.label)
     learned = None if args.prior is None else LearnedPrior.load(args.prior, world)
-    policy = load(args.policy, world) if args.policy is not None else base_policy(world)
-    policy.fits(world)
+    policy = chosen_policy(world, args.policy, args.weights)
     if args.saliency is not None:
         check_explainable(policy)
     if world.benchmark:

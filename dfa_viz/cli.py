@@ -10,9 +10,11 @@ one line and exits 2.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import sys
+from pathlib import Path
 from typing import Annotated, Union
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -210,6 +212,29 @@ HANDLERS = {
 }
 
 
+OUTPUT_FILES = (BenchArgs, PriorArgs)  # their --out names a file; every other --out, a folder
+
+
+def check_output(config) -> None:
+    """Refuse, before any work, an --out that cannot be written: a folder given where a file
+    goes or the other way round, a file on the way to it, a folder that cannot be written to."""
+    if "out" not in {f.name for f in dataclasses.fields(config)} or config.out is None:
+        return
+    out = Path(config.out)
+    folder = not isinstance(config, OUTPUT_FILES)
+    if folder and out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} is a file; give a folder for the outputs")
+    if not folder and out.is_dir():
+        raise UserError(f"--out {out} is a folder; give the name of the file to write")
+    above = out.parent if not folder or not out.exists() else out
+    while not above.exists():
+        above = above.parent
+    if not above.is_dir():
+        raise UserError(f"--out {out}: {above} is a file, so nothing can be written under it")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise UserError(f"--out {out}: {above} cannot be written to")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `dfa` console script; user errors print one line and exit 2."""
     args = sys.argv[1:] if argv is None else list(argv)
@@ -217,6 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         config = tyro.cli(
             Command, args=args, prog="dfa", config=(tyro.conf.OmitSubcommandPrefixes,)
         )
+        check_output(config)
         HANDLERS[type(config)](config)
     except UserError as e:
         print(f"dfa: error: {e}", file=sys.stderr)

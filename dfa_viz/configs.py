@@ -116,6 +116,9 @@ class RunArgs:
     """The policy to diagnose instead of the base policy: a checkpoint folder
     (model.safetensors + config.json), onnx:PATH.onnx, torch:MODULE:CALLABLE@WEIGHTS or
     sb3:PATH.zip (policy.outside)."""
+    weights: Path | None = None
+    """Finetuned weights dfa saved for --policy (a folder the page wrote, policy-NNNN): loaded
+    into that policy once its file is shown to be the one they were finetuned from."""
     demo: Path | None = None
     """A demonstration .npz (a saved Trajectory) instead of the scripted expert's; for a world
     without test tasks, the demonstration's first scene is the task."""
@@ -217,6 +220,8 @@ class ServeArgs:
     """A session folder to resume (default: a new one under recordings/sessions/)."""
     policy: str | None = None
     """The policy to diagnose in --world instead of its base policy (as for `dfa run`)."""
+    weights: Path | None = None
+    """Finetuned weights dfa saved for --policy (as for `dfa run`)."""
     out: Path = Path("recordings")
     """Folder for the recordings and new sessions."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)

@@ -23,6 +23,7 @@ import hashlib
 import json
 import os
 import platform
+import sys
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -147,7 +148,12 @@ def base_policy(
             )
         return load_policy(folder, world=world)
     if not retrain and (folder / "model.safetensors").is_file():
-        return load_policy(folder, world=world)
+        try:
+            return load_policy(folder, world=world)
+        except UserError as e:  # a damaged cache entry is dropped and made again
+            print(
+                f"dfa: the cached base policy is unusable ({e}); training it again", file=sys.stderr
+            )
     policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
     solved = sum(r.success for r in world.rollout_batch(training_tasks(world, seed), policy))
     meta: dict[str, Any] = {

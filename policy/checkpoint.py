@@ -15,29 +15,36 @@ import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
-from policy.model import ImagePolicy, Policy, PolicyConfig
+from policy.model import ImagePolicy, Origin, Policy, PolicyConfig
 from sim.core import UserError, World, files
 
 # what a checkpoint's architecture may ask for: (field, smallest, largest) for each integer
 BOUNDS = {"channels": (1, 256), "kernels": (1, 16), "strides": (1, 8), "hidden": (1, 4096)}
 MAX_SIDE_PX = 1024  # observations up to 1024 x 1024 pixels
 MAX_ACTIONS = 256
+WEIGHTS = "model.safetensors"
 
 
 def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None) -> Path:
     """Write folder/model.safetensors and folder/config.json: the architecture (or, for a
-    policy from outside, the spec it was loaded from) and `meta`."""
+    policy from outside, its Origin: what it was loaded from, as data), the weights' sha256 and
+    `meta`. The weights are written first: a crash between the two leaves a digest that does
+    not match, never a folder that loads as something it is not."""
     if policy.net is None:
         raise UserError("this policy has no weights of its own to save (an ONNX graph)")
+    if policy.source is not None and policy.origin is None:
+        raise UserError(f"{policy.source}: its loader recorded no origin; it cannot be saved")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     state, aliases = unique_tensors(policy.net.state_dict())
-    with files.atomic_path(folder / "model.safetensors") as tmp:
+    with files.atomic_path(folder / WEIGHTS) as tmp:
         save_file(state, str(tmp), metadata={"aliases": json.dumps(aliases)} if aliases else None)
-    if policy.source is None:
-        doc = {"policy": policy.config.to_dict(), "meta": meta or {}}
+        digest = files.sha256(tmp)
+    if policy.origin is None:
+        doc = {"policy": policy.config.to_dict()}
     else:
-        doc = {"source": policy.source, "meta": meta or {}}
+        doc = {"origin": policy.origin.to_dict()}
+    doc |= {"weights_sha256": digest, "meta": meta or {}}
     files.write_text(folder / "config.json", json.dumps(doc, indent=2) + "\n")
     return folder
 
@@ -96,15 +103,39 @@ def read_config(folder: str | Path) -> dict[str, Any]:
     except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
         why = "not UTF-8 text" if isinstance(e, UnicodeDecodeError) else "not valid JSON"
         raise UserError(f"checkpoint {path}: {why}; expected a JSON object") from None
-    if not isinstance(doc, dict) or not (
-        isinstance(doc.get("policy"), dict) or isinstance(doc.get("source"), str)
-    ):
+    kinds = ("policy", "origin")
+    if not isinstance(doc, dict) or not any(isinstance(doc.get(k), dict) for k in kinds):
+        if isinstance(doc, dict) and isinstance(doc.get("source"), str):
+            return doc  # an older finetuned copy of an outside policy: see load_policy
         raise UserError(
             f'checkpoint {path}: expected a JSON object with a "policy" object '
-            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden) or a "
-            '"source" (the spec of a policy from outside)'
+            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden) or an "
+            '"origin" object (kind, file, sha256: the policy from outside it was finetuned from)'
         )
     return doc
+
+
+def _origin(folder: Path, raw: Any) -> Origin:
+    """The "origin" of a finetuned copy of an outside policy, checked to be plain data."""
+    fields = ("kind", "file", "sha256")
+    if not (
+        isinstance(raw, dict)
+        and set(raw) == set(fields)
+        and all(isinstance(raw[k], str) and 0 < len(raw[k]) <= 255 for k in fields)
+        and _is_sha256(raw["sha256"])
+    ):
+        raise UserError(
+            f"checkpoint {folder / 'config.json'}: origin must be an object of kind, file and "
+            "sha256 (64 hex digits), all strings"
+        )
+    return Origin(raw["kind"], raw["file"], raw["sha256"])
+
+
+def _is_sha256(text: Any) -> bool:
+    return isinstance(text, str) and len(text) == 64 and all(c in HEX for c in text)
+
+
+HEX = frozenset("0123456789abcdef")
 
 
 def _ints(path: Path, name: str, value: Any, n: int | None, lo: int, hi: int) -> tuple[int, ...]:
@@ -165,27 +196,50 @@ def config_for(folder: str | Path, world: World) -> PolicyConfig:
     return PolicyConfig(world.name, obs, action_dim, world.discrete, **arch)
 
 
-def load_policy(folder: str | Path, *, world: World) -> Policy:
-    """Load a checkpoint folder for `world`; anything wrong with it is one UserError line."""
+def check_weights(folder: Path, doc: dict) -> None:
+    """The weights are what config.json says they were: its "weights_sha256" (written by
+    save_policy; absent in folders written before it was recorded) against the file."""
+    want = doc.get("weights_sha256")
+    if want is None:
+        return
+    if not _is_sha256(want):
+        raise UserError(
+            f"checkpoint {folder / 'config.json'}: weights_sha256 must be 64 hex digits"
+        )
+    if files.sha256(folder / WEIGHTS) != want:
+        raise UserError(
+            f"checkpoint {folder}: {WEIGHTS} is not the file config.json recorded (its sha256 "
+            "differs): it was changed or damaged after it was saved"
+        )
+
+
+def load_policy(folder: str | Path, *, world: World, base: Policy | None = None) -> Policy:
+    """Load a checkpoint folder for `world`; anything wrong with it is one UserError line.
+
+    A folder names no code: the project's own checkpoint holds its architecture; a finetuned
+    copy of a policy from outside holds only its Origin, and is loaded as new weights for
+    `base`, the same policy given again by the user (its file's sha256 must match)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"checkpoint {folder}: not a folder; expected model.safetensors + config")
-    weights = folder / "model.safetensors"
+    weights = folder / WEIGHTS
     if not weights.is_file():
         raise UserError(
             f"checkpoint {folder}: missing model.safetensors; expected model.safetensors + "
             "config.json"
         )
-    source = read_config(folder).get("source")
-    if source is not None:  # a finetuned copy of a policy from outside: its source, new weights
-        from policy.outside import load
-
-        policy = load(source, world)
-        if policy.net is None:
-            raise UserError(f"checkpoint {folder}: its source {source} has no weights to load")
-        net = policy.net
+    doc = read_config(folder)
+    check_weights(folder, doc)
+    if "policy" in doc:
+        if base is not None and base.source is not None:
+            raise UserError(
+                f"checkpoint {folder} holds a policy of its own (its architecture is in its "
+                f"config.json), not weights for {base.source}; give it alone with --policy"
+            )
+        policy = Policy(ImagePolicy(config_for(folder, world)))
     else:
-        net = ImagePolicy(config_for(folder, world))
+        policy = _outside_base(folder, doc, base)
+    net = policy.net
     state = _read_tensors(weights)
     expected = net.state_dict()
     if set(state) != set(expected):
@@ -204,4 +258,30 @@ def load_policy(folder: str | Path, *, world: World) -> Policy:
             raise UserError(f"checkpoint {weights}: tensor {name} has {bad} non-finite values")
     with torch.no_grad():
         net.load_state_dict(state)
-    return policy.with_net(net) if source is not None else Policy(net)
+    return policy
+
+
+def _outside_base(folder: Path, doc: dict, base: Policy | None) -> Policy:
+    """A copy of `base` to load a finetuned copy's weights into, once `base` is shown to be
+    the policy the folder was finetuned from."""
+    if "origin" in doc:
+        origin = _origin(folder, doc["origin"])
+        if base is None or base.source is None:
+            raise UserError(
+                f"checkpoint {folder} holds finetuned weights of {origin}; it is loaded only "
+                f"beside that policy: give it with --policy and this folder with --weights"
+            )
+        if base.origin != origin:
+            raise UserError(
+                f"checkpoint {folder} holds finetuned weights of {origin}, not of "
+                f"{base.origin or base.source}"
+            )
+    elif base is None or base.source != doc["source"]:  # written before origins were recorded
+        raise UserError(
+            f"checkpoint {folder} names the policy it was finetuned from by a spec "
+            f"({json.dumps(doc['source'])[:80]}), which dfa does not follow; give that policy "
+            "with --policy and this folder with --weights"
+        )
+    if base.net is None:
+        raise UserError(f"checkpoint {folder}: {base.source} has no weights to load into")
+    return base.copy()

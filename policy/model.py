@@ -70,6 +70,27 @@ class ImagePolicy(nn.Module):
         return self.head(self.trunk(x))
 
 
+@dataclass(frozen=True)
+class Origin:
+    """What a policy from outside was loaded from, as data: its loader's kind and the name and
+    sha256 of the file it read. A finetuned copy records it (config.json "origin") instead of
+    anything that could be imported or run, and is loaded only beside the same policy given
+    again on the command line."""
+
+    kind: str
+    """The loader: "sb3", "torch" or "onnx"."""
+    file: str
+    """The file's name (no folder: where it lies is the command line's business)."""
+    sha256: str
+    """The file's bytes' hex sha256."""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def __str__(self) -> str:
+        return f"the {self.kind} policy {self.file} (sha256 {self.sha256[:12]}…)"
+
+
 CHUNK_VALUES = 1_500_000
 """Pixel values (H x W x 3 per frame) in one forward batch: the activations of a batch this
 size stay in the processor's caches. Larger batches are slower per frame (measured: the
@@ -87,9 +108,10 @@ class Policy:
     finetuning trains; None for a policy that can only be run (an ONNX graph).
 
     discrete, obs_shape (H, W, 3), action_dim: what the policy takes and gives, checked
-    against a world before use (fits). source: how to build it again (a loader's spec; None
-    for the project's own checkpoints, whose config.json says everything). chunk: frames per
-    forward batch; by default as many as fit CHUNK_VALUES.
+    against a world before use (fits). source: the spec it was loaded from, as the user typed
+    it (None for the project's own checkpoints, whose config.json says everything); it is never
+    written to a checkpoint. origin: what that spec read (Origin), which a finetuned copy
+    records. chunk: frames per forward batch; by default as many as fit CHUNK_VALUES.
     """
 
     def __init__(
@@ -100,6 +122,7 @@ class Policy:
         obs_shape: tuple[int, int, int] | None = None,
         action_dim: int | None = None,
         source: str | None = None,
+        origin: Origin | None = None,
         chunk: int | None = None,
     ) -> None:
         config = getattr(net, "config", None)  # the project's ImagePolicy carries its own
@@ -108,6 +131,7 @@ class Policy:
         self.obs_shape = tuple(config.obs_shape if obs_shape is None else obs_shape)
         self.action_dim = config.action_dim if action_dim is None else action_dim
         self.source = source
+        self.origin = origin
         self.chunk = chunk or max(1, CHUNK_VALUES // int(np.prod(self.obs_shape)))
 
     @property

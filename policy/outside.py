@@ -1,9 +1,8 @@
 """Policies from outside the project, each as a policy.model.Policy (the one protocol the
 search, the loop and the page use). Nothing is ever unpickled.
 
-    load(spec, world) -> Policy
-        a folder                          the project's own checkpoint (or a finetuned copy
-                                          of one of the below, which names its source)
+    load(spec, world, weights=None) -> Policy
+        a folder                          the project's own checkpoint
         onnx:PATH.onnx[#OBS]              an ONNX graph, run by onnxruntime: diagnosis only
         torch:MODULE:CALLABLE@WEIGHTS[#OBS]
                                           CALLABLE() builds a torch.nn.Module, WEIGHTS (a
@@ -11,6 +10,9 @@ search, the loop and the page use). Nothing is ever unpickled.
                                           finetuning
         sb3:PATH.zip                      a stable-baselines3 PPO, A2C or DQN with CnnPolicy:
                                           diagnosis and finetuning of its policy network
+
+`weights`: a folder of finetuned weights dfa saved for the policy `spec` names (its config.json
+records the sha256 of the file the spec reads, never the spec: a folder names no code).
 
 OBS declares the conversion the policy expects of the world's uint8 (B, H, W, 3) frames, as
 comma-separated words: `chw` (channels first), `float` (float32), `scale=X` (multiplied by X,
@@ -38,8 +40,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from policy.model import Policy
-from sim.core import UserError
+from policy.checkpoint import load_policy
+from policy.model import Origin, Policy
+from sim.core import UserError, files
+
+MAX_DATA_BYTES = 64 << 20  # an sb3 zip's `data` (JSON settings) as stored inflated
+MAX_WEIGHTS_BYTES = 1 << 30  # its policy.pth, and any weights file read whole
 
 # the stable-baselines3 policy classes that can be rebuilt: (module, class) -> kind
 SB3_CLASSES = {
@@ -71,14 +77,16 @@ class ObsSpec:
                     out["as_float"] = True
                 elif key == "scale" and value:
                     out["scale"], out["as_float"] = float(Fraction(value)), True
+                    if not 0 < abs(out["scale"]) < float("inf"):
+                        raise ValueError
                 elif key == "frames" and value:
                     out["frames"] = int(value)
                 else:
                     raise ValueError
-            except (ValueError, ZeroDivisionError):
+            except (ValueError, ZeroDivisionError, OverflowError):
                 raise UserError(
-                    f"observation option {word!r}: accepted: chw, hwc, float, scale=X "
-                    "(e.g. scale=1/255), frames=1"
+                    f"observation option {word[:40]!r}: accepted: chw, hwc, float, scale=X "
+                    "(a finite non-zero number, e.g. scale=1/255), frames=1"
                 ) from None
         spec = cls(**out)
         if spec.frames != 1:
@@ -146,8 +154,10 @@ class OnnxPolicy(Policy):
         import onnxruntime
 
         try:
+            options = onnxruntime.SessionOptions()
+            options.log_severity_level = 3  # errors only: its warnings are not ours to print
             self.session = onnxruntime.InferenceSession(
-                str(path), providers=["CPUExecutionProvider"]
+                str(path), options, providers=["CPUExecutionProvider"]
             )
         except Exception as e:
             raise UserError(
@@ -168,6 +178,14 @@ class OnnxPolicy(Policy):
             raise UserError(
                 f"{path}: the graph takes frames of shape {got}, but {world.name}'s frames "
                 f"{tuple(world.obs_shape)} converted as declared give {want}"
+            )
+        out = self.session.get_outputs()[0]  # as onnxruntime infers it from the graph
+        dims = list(out.shape)
+        free_batch = len(dims) == 2 and (dims[0] == 1 or not isinstance(dims[0], int))
+        if not free_batch or dims[1] != world.action_dim:
+            raise UserError(
+                f"{path}: the graph's output {out.name!r} has shape {dims}; a policy gives "
+                f"(batch, {world.action_dim}) for {world.name}, with the {world.action_dim} fixed"
             )
         wants_float = self.input.type == "tensor(float)"
         if wants_float != obs.as_float:
@@ -197,7 +215,12 @@ def _torch_module(target: str, weights: Path) -> nn.Module:
         make = getattr(importlib.import_module(module_name), attr)
     except (ImportError, AttributeError) as e:
         raise UserError(f"torch:{target}: cannot find {attr} in {module_name} ({e})") from None
-    net = make()
+    except (Exception, SystemExit) as e:  # the module's own code failed as it was imported
+        raise UserError(f"torch:{target}: importing {module_name} raised {_said(e)}") from None
+    try:
+        net = make()
+    except (Exception, SystemExit) as e:
+        raise UserError(f"torch:{target}: {attr}() raised {_said(e)}") from None
     if not isinstance(net, nn.Module):
         raise UserError(
             f"torch:{target}: {attr}() gave a {type(net).__name__}, not a torch.nn.Module"
@@ -205,6 +228,8 @@ def _torch_module(target: str, weights: Path) -> nn.Module:
     from safetensors import SafetensorError
     from safetensors.torch import load_file
 
+    if weights.stat().st_size > MAX_WEIGHTS_BYTES:
+        raise UserError(f"{weights}: over {MAX_WEIGHTS_BYTES >> 20} MiB; not read")
     try:
         state = load_file(str(weights))
     except (SafetensorError, OSError) as e:
@@ -216,6 +241,12 @@ def _torch_module(target: str, weights: Path) -> nn.Module:
             f"{weights}: does not fit {attr}(): {str(e).splitlines()[0][:160]}"
         ) from None
     return net
+
+
+def _said(e: BaseException) -> str:
+    """An exception as a few words on one line."""
+    text = str(e).strip().splitlines()[0][:160] if str(e).strip() else ""
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
 # -- stable-baselines3 --------------------------------------------------------------------------
@@ -257,20 +288,47 @@ def _sb3_class(data: dict, path: Path) -> tuple[str, str]:
     return module, name
 
 
-def load_sb3(path: Path, world, source: str) -> Policy:
+def _read_zip(path: Path) -> tuple[dict, dict[str, torch.Tensor]]:
+    """`data` (JSON) and policy.pth (tensors only) of an sb3 zip, each refused by its stored
+    inflated size before it is read."""
+    limits = {"data": MAX_DATA_BYTES, "policy.pth": MAX_WEIGHTS_BYTES}
     try:
         with zipfile.ZipFile(path) as z:
+            for name, limit in limits.items():
+                if z.getinfo(name).file_size > limit:
+                    raise UserError(
+                        f"{path}: its {name} inflates to {z.getinfo(name).file_size >> 20} MiB, "
+                        f"over the {limit >> 20} MiB accepted; not read"
+                    )
             data = json.loads(z.read("data"))
             with z.open("policy.pth") as f:
                 state = torch.load(f, map_location="cpu", weights_only=True)
-    except (zipfile.BadZipFile, KeyError, OSError, json.JSONDecodeError) as e:
+    except UserError:
+        raise
+    except (zipfile.BadZipFile, KeyError, OSError, json.JSONDecodeError, RecursionError) as e:
         raise UserError(
-            f"{path}: not a stable-baselines3 .zip ({e}); expected data and policy.pth"
+            f"{path}: not a stable-baselines3 .zip ({_said(e)}); expected data and policy.pth"
         ) from None
     except Exception as e:  # torch.load refusing anything that is not plain tensors
-        raise UserError(
-            f"{path}: policy.pth is not plain tensors ({str(e).splitlines()[0][:120]})"
-        ) from None
+        raise UserError(f"{path}: policy.pth is not plain tensors ({_said(e)})") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: its data is JSON {type(data).__name__}, not an object")
+    if not isinstance(state, dict) or not all(
+        isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()
+    ):
+        raise UserError(f"{path}: policy.pth is not a mapping of names to tensors")
+    return data, state
+
+
+def _space(data: dict, key: str, path: Path) -> dict:
+    space = data.get(key, {})
+    if not isinstance(space, dict):
+        raise UserError(f"{path}: its {key} is JSON {type(space).__name__}, not an object")
+    return space
+
+
+def load_sb3(path: Path, world, source: str) -> Policy:
+    data, state = _read_zip(path)
     module, name = _sb3_class(data, path)
     kwargs = data.get("policy_kwargs") or {}
     if not isinstance(kwargs, dict) or _has_pickle(kwargs):
@@ -278,14 +336,18 @@ def load_sb3(path: Path, world, source: str) -> Policy:
             f"{path}: its policy_kwargs hold values only unpickling could restore (a custom "
             "features extractor or activation); rebuild it with plain settings"
         )
-    obs_space, act_space = data.get("observation_space", {}), data.get("action_space", {})
-    shape = tuple(obs_space.get("_shape") or ())
+    obs_space, act_space = (
+        _space(data, "observation_space", path),
+        _space(data, "action_space", path),
+    )
+    raw_shape = obs_space.get("_shape") or ()
+    shape = tuple(raw_shape) if isinstance(raw_shape, list) else ()
     h, w, c = world.obs_shape
     channels_first = shape == (c, h, w)
     if shape not in ((c, h, w), (h, w, c)) or obs_space.get("dtype") != "uint8":
         raise UserError(
-            f"{path}: the policy takes {obs_space.get('dtype')} observations of shape {shape}, "
-            f"but {world.name} renders uint8 {tuple(world.obs_shape)}"
+            f"{path}: the policy takes {str(obs_space.get('dtype'))[:20]} observations of shape "
+            f"{shape or str(raw_shape)[:40]}, but {world.name} renders uint8 {tuple(world.obs_shape)}"
         )
     n = int(act_space.get("n", -1)) if str(act_space.get("n", "")).isdigit() else -1
     if not world.discrete or n != world.action_dim:
@@ -300,25 +362,68 @@ def load_sb3(path: Path, world, source: str) -> Policy:
         gymnasium.spaces.Box(0, 255, shape, np.uint8),
         gymnasium.spaces.Discrete(n),
     )
+
+    def build():
+        return cls(*spaces, lr_schedule=lambda _: 0.0, **kwargs)
+
     try:
-        policy = cls(*spaces, lr_schedule=lambda _: 0.0, **kwargs)
+        with torch.device("meta"):  # the stored shapes compared before anything is allocated
+            shapes = {k: tuple(t.shape) for k, t in build().state_dict().items()}
+        stored = {k: tuple(t.shape) for k, t in state.items()}
+        if shapes != stored:
+            differ = sorted(k for k in set(shapes) | set(stored) if shapes.get(k) != stored.get(k))
+            raise UserError(
+                f"{path}: policy.pth does not fit the {name} its settings describe (first of "
+                f"{len(differ)} differing tensors: {differ[0]}, stored "
+                f"{stored.get(differ[0])}, built {shapes.get(differ[0])})"
+            )
+        policy = build()
         policy.load_state_dict(state)
-    except (TypeError, RuntimeError) as e:
-        raise UserError(
-            f"{path}: cannot rebuild its {name} ({str(e).splitlines()[0][:160]})"
-        ) from None
+    except UserError:
+        raise
+    except (Exception, SystemExit) as e:
+        raise UserError(f"{path}: cannot rebuild its {name} ({_said(e)})") from None
     kind = SB3_CLASSES[(module, name)]
     net = SB3Actor(policy.eval(), kind, channels_first)
     return Policy(net, discrete=True, obs_shape=world.obs_shape, action_dim=n, source=source)
 
 
 # -- the dispatch -------------------------------------------------------------------------------
-def load(spec: str, world) -> Policy:
-    """The policy `spec` names, checked to fit `world` (see the module docstring)."""
+def _origin(kind: str, path: Path) -> Origin:
+    return Origin(kind, path.name, files.sha256(path))
+
+
+def chosen_policy(world, spec: str | None, weights: str | Path | None = None) -> Policy:
+    """The policy a command diagnoses: the one `spec` names (with finetuned `weights`), else
+    the world's base policy; checked to fit `world`."""
+    from policy.base import base_policy
+
+    if spec is None:
+        if weights is not None:
+            raise UserError(
+                f"--weights {weights}: finetuned weights go with the --policy they were "
+                "finetuned from; give that too (or give a checkpoint folder of the project's "
+                "own as --policy)"
+            )
+        policy = base_policy(world)
+    else:
+        policy = load(spec, world, weights=weights)
+    policy.fits(world)
+    return policy
+
+
+def load(spec: str, world, *, weights: str | Path | None = None) -> Policy:
+    """The policy `spec` names, checked to fit `world` (see the module docstring); with
+    `weights`, that policy with the finetuned weights dfa saved for it."""
+    policy = _load(spec, world)
+    if weights is None:
+        return policy
+    return load_policy(Path(weights), world=world, base=policy)
+
+
+def _load(spec: str, world) -> Policy:
     kind, sep, rest = str(spec).partition(":")
     if not sep or kind not in ("onnx", "torch", "sb3"):
-        from policy.checkpoint import load_policy
-
         return load_policy(Path(spec), world=world)
     target, _, obs_text = rest.partition("#")
     obs = ObsSpec.parse(obs_text)
@@ -327,11 +432,15 @@ def load(spec: str, world) -> Policy:
         path = Path(target)
         if not path.is_file():
             raise UserError(f"onnx:{target}: no such file")
-        return _probe(OnnxPolicy(path, world, obs, f"onnx:{path.resolve()}{tail}"), world)
+        policy = OnnxPolicy(path, world, obs, f"onnx:{path.resolve()}{tail}")
+        policy.origin = _origin("onnx", path)
+        return _probe(policy, world)
     if kind == "torch":
-        where, _, weights = target.rpartition("@")
-        if not where or not Path(weights).is_file():
+        where, at, weights = target.rpartition("@")
+        if not at or not where:
             raise UserError(f"torch:{target}: expected torch:MODULE:CALLABLE@WEIGHTS.safetensors")
+        if not Path(weights).is_file():
+            raise UserError(f"torch:{target}: {weights}: no such file")
         net = Converted(_torch_module(where, Path(weights)), obs)
         policy = Policy(
             net,
@@ -339,6 +448,7 @@ def load(spec: str, world) -> Policy:
             obs_shape=world.obs_shape,
             action_dim=world.action_dim,
             source=f"torch:{where}@{Path(weights).resolve()}{tail}",
+            origin=_origin("torch", Path(weights)),
         )
         return _probe(policy, world)
     if obs_text:
@@ -346,4 +456,6 @@ def load(spec: str, world) -> Policy:
     path = Path(target)
     if not path.is_file():
         raise UserError(f"sb3:{target}: no such file")
-    return _probe(load_sb3(path, world, f"sb3:{path.resolve()}"), world)
+    policy = load_sb3(path, world, f"sb3:{path.resolve()}")
+    policy.origin = _origin("sb3", path)
+    return _probe(policy, world)

@@ -242,6 +242,8 @@ class LearnedPrior:
             raise UserError(f"no learned prior at {path}") from None
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
             raise UserError(f"cannot read learned prior {path}: {e}") from None
+        except RecursionError:
+            raise UserError(f"cannot read learned prior {path}: nested too deeply") from None
         if not isinstance(d, dict):
             raise UserError(f"malformed learned prior {path}: not a JSON object")
         prior = cls.from_json(d)

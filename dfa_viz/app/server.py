@@ -50,9 +50,11 @@ def open_state(
     out: Path = Path("recordings"),
     adapt: AdaptConfig = AdaptConfig(),
     policy: str | None = None,
+    weights: Path | None = None,
 ) -> LoopState:
     """The loop state of a session folder (resumed), or of a new one under out/sessions/;
-    `policy` (a policy.outside spec) is diagnosed in `world` instead of its base policy."""
+    `policy` (a policy.outside spec, with finetuned `weights` for it) is diagnosed in `world`
+    instead of its base policy."""
     check_world_name(world)  # an unknown world: one line, before anything is created
     adapt.check()
     sess = (
@@ -63,7 +65,7 @@ def open_state(
     try:
         for note in sess.notes:
             print(f"dfa serve: {note}", flush=True)
-        policies = Policies(spec=policy, world=world)
+        policies = Policies(spec=policy, world=world, weights=weights)
         return LoopState(sess, out=out, adapt_config=adapt, policies=policies)
     except BaseException:
         sess.close()
@@ -214,6 +216,7 @@ def serve(args: ServeArgs) -> None:
         out=args.out,
         adapt=args.adapt,
         policy=args.policy,
+        weights=args.weights,
     )
     app = start(port=args.port, host=args.host, state=state)
     _block(app)

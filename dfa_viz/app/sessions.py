@@ -238,12 +238,13 @@ class Session:
                 raise
             raise SessionError(f"{self.path}:{line}: the file it names is unusable: {e}") from None
 
-    def load_policy(self, name: str, world, line: int | str = "?"):
-        """A checkpoint folder the session saved (policy.load_policy, checked for `world`)."""
+    def load_policy(self, name: str, world, line: int | str = "?", *, base=None):
+        """A checkpoint folder the session saved (policy.load_policy, checked for `world`);
+        `base`: the policy the page diagnoses, whose finetuned copy an outside policy's is."""
         from policy import load_policy
 
         try:
-            return load_policy(self.file(name, line), world=world)
+            return load_policy(self.file(name, line), world=world, base=base)
         except UserError as e:
             if isinstance(e, SessionError):
                 raise

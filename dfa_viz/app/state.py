@@ -31,7 +31,7 @@ from dfa_viz.app.view import View
 from dfa_viz.loop import AdaptConfig, RunRecord, adapt, diagnose, evaluate, start
 from dfa_viz.recording import write_recording
 from policy import Policy, base_policy, failing_test_task, save_policy, training_demos
-from policy.outside import load
+from policy.outside import chosen_policy
 from search import SearchConfig
 from sim import get_world
 from sim.core import (
@@ -53,17 +53,19 @@ class Policies:
     names for the world the page opens on) and the training demonstrations, made once per
     process."""
 
-    def __init__(self, *, spec: str | None = None, world: str | None = None) -> None:
+    def __init__(
+        self, *, spec: str | None = None, world: str | None = None, weights: Path | None = None
+    ) -> None:
         self._lock = threading.Lock()
         self._policies: dict[str, Policy] = {}
         self._known: dict[str, tuple] = {}
-        self._spec, self._spec_world = spec, world
+        self._spec, self._spec_world, self._weights = spec, world, weights
 
     def get(self, world: World) -> Policy:
         with self._lock:
             if world.name not in self._policies:
-                if self._spec is not None and world.name == self._spec_world:
-                    policy = load(self._spec, world)
+                if world.name == self._spec_world:
+                    policy = chosen_policy(world, self._spec, self._weights)
                 else:
                     policy = base_policy(world)
                 policy.fits(world)
@@ -111,7 +113,9 @@ class LoopState:
         self._rebuild = E.Rebuild(
             policy=self.policies.get,
             trajectory=lambda name: session.load_trajectory(name),
-            checkpoint=lambda name, world: session.load_policy(name, world),
+            checkpoint=lambda name, world: session.load_policy(
+                name, world, base=self.policies.get(world)
+            ),
         )
         self._inputs: queue.Queue = queue.Queue()
         threading.Thread(target=self._input_loop, name="dfa-inputs", daemon=True).start()

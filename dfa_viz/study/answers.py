@@ -72,7 +72,7 @@ def read_lines(path: Path) -> list[dict]:
     for i, raw in enumerate(lines[:-1], start=1):  # the last piece has no newline: torn
         try:
             out.append(json.loads(raw))
-        except ValueError:
+        except (ValueError, RecursionError):
             raise UserError(f"{path}:{i}: not a JSON line") from None
     return out
 

@@ -209,7 +209,7 @@ def read_json(path: Path):
         raise UserError(
             f"{path}: cannot read it ({e.strerror}); is it a `dfa study new` folder?"
         ) from None
-    except ValueError as e:
+    except (ValueError, RecursionError) as e:
         raise UserError(f"{path}: not a JSON file ({e})") from None
 
 

@@ -8,6 +8,7 @@ exception, a killed process) leaves the old file as it was and no temporary file
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import re
 import tempfile
@@ -89,3 +90,12 @@ def safe_name(text: str) -> str:
     '.', '_' and '-' becomes one '_' (a world "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12" gives
     "minigrid_MiniGrid-DoorKey-5x5-v0_tile_12")."""
     return re.sub(r"[^A-Za-z0-9._-]+", "_", text)
+
+
+def sha256(path: str | Path) -> str:
+    """The hex sha256 of a file's bytes, read a megabyte at a time."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()

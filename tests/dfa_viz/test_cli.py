@@ -207,7 +207,7 @@ def test_bad_run_options_are_one_line(capsys, args, message):
 def test_out_naming_a_file_is_refused(capsys, tmp_path):
     (tmp_path / "f").write_text("keep")
     line = one_line_error(capsys, "run", "--out", str(tmp_path / "f"))
-    assert "is a file; give a folder for the recordings" in line
+    assert "is a file; give a folder for the outputs" in line
     assert (tmp_path / "f").read_text() == "keep"
 
 

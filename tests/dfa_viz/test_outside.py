@@ -108,7 +108,8 @@ def test_a_pytorch_module_is_run_with_its_declared_conversion(world, tmp_path, m
     [
         ("onnx:nowhere.onnx", "no such file"),
         ("sb3:nowhere.zip", "no such file"),
-        ("torch:nomodule:make@nowhere.safetensors", "expected torch:MODULE:CALLABLE@WEIGHTS"),
+        ("torch:nomodule:make@nowhere.safetensors", "nowhere.safetensors: no such file"),
+        ("torch:nomodule:make", "expected torch:MODULE:CALLABLE@WEIGHTS"),
         (f"onnx:{ONNX}#frames=4", "frame-stacked policies are not supported"),
         (f"onnx:{ONNX}#sideways", "observation option 'sideways'"),
         (f"onnx:{ONNX}#float", r"the graph takes tensor\(uint8\)"),
@@ -172,17 +173,24 @@ def test_observation_specs_parse():
 
 def test_a_finetuned_sb3_network_is_saved_once_and_loads_back(world, tmp_path, monkeypatch):
     """SB3's actor and critic share one features extractor: the checkpoint stores each shared
-    tensor once and loads every name back; it names its source by an absolute path, so it
-    loads from any working directory."""
+    tensor once and loads every name back. It records what it was finetuned from as data (the
+    zip's name and sha256), never a spec to follow: it loads only beside that zip, given again,
+    from any working directory."""
     from policy.checkpoint import load_policy, save_policy
+    from sim.core import files
 
     tuned = load(f"sb3:{ZIP}", world).copy()
     with torch.no_grad():
         for p in tuned.net.parameters():
             p.add_(0.01)
     folder = save_policy(tuned, tmp_path / "tuned")
+    doc = json.loads((folder / "config.json").read_text())
+    assert "source" not in doc and "policy" not in doc
+    assert doc["origin"] == {"kind": "sb3", "file": ZIP.name, "sha256": files.sha256(ZIP)}
     monkeypatch.chdir(tmp_path)
-    back = load_policy(folder, world=world)
+    with pytest.raises(UserError, match=r"finetuned weights of the sb3 policy doorkey5x5_ppo\.zip"):
+        load_policy(folder, world=world)
+    back = load(f"sb3:{ZIP}", world, weights=folder)
     frames = world.render_batch([world.sample_scene(s) for s in range(4)])
     np.testing.assert_array_equal(back.outputs(frames), tuned.outputs(frames))
     from safetensors import safe_open
@@ -190,3 +198,6 @@ def test_a_finetuned_sb3_network_is_saved_once_and_loads_back(world, tmp_path, m
     with safe_open(folder / "model.safetensors", "pt") as f:
         stored = set(f.keys())
     assert len(stored) < len(tuned.net.state_dict())  # the shared extractor once
+    other = _rewritten(tmp_path, lambda data: data.update(n_steps=data["n_steps"] + 1))
+    with pytest.raises(UserError, match=r"not of the sb3 policy changed\.zip"):
+        load(f"sb3:{other}", world, weights=folder)

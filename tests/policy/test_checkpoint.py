@@ -19,9 +19,14 @@ from sim.core import UserError
 
 @pytest.fixture
 def ckpt(nav, tmp_path):
-    """A valid nav2d checkpoint folder (a small untrained net) to break in each test."""
+    """A valid nav2d checkpoint folder (a small untrained net) to break in each test; its
+    config.json records no weights digest, as a checkpoint made by hand would not."""
     small = Policy(ImagePolicy(PolicyConfig("nav2d", (36, 36, 3), 2, False, hidden=50)))
-    return save_policy(small, tmp_path / "ckpt")
+    folder = save_policy(small, tmp_path / "ckpt")
+    doc = json.loads((folder / "config.json").read_text())
+    del doc["weights_sha256"]
+    (folder / "config.json").write_text(json.dumps(doc))
+    return folder
 
 
 def _set(folder, **fields):
@@ -138,3 +143,86 @@ def test_a_changed_recipe_with_stale_weights_is_an_error(nav, tmp_path, monkeypa
     (tmp_path / "nav2d" / "config.json").write_text(json.dumps(doc))
     with pytest.raises(UserError, match="the training frames look different"):
         B.base_policy(nav)
+
+
+@pytest.mark.parametrize("name", PAPER_WORLDS)
+def test_committed_weights_are_checked_against_their_recorded_digest(name, tmp_path):
+    """config.json records the sha256 of model.safetensors; one flipped bit is refused."""
+    doc = json.loads((B.WEIGHTS / name / "config.json").read_text())
+    assert len(doc["weights_sha256"]) == 64
+    copy = shutil.copytree(B.WEIGHTS / name, tmp_path / name)
+    raw = bytearray((copy / "model.safetensors").read_bytes())
+    raw[-7] ^= 0x01  # a bit of the last tensor's values: still a readable safetensors file
+    (copy / "model.safetensors").write_bytes(bytes(raw))
+    with pytest.raises(UserError, match=r"is not the file config\.json recorded") as err:
+        load_policy(copy, world=get_world(name))
+    assert "\n" not in str(err.value)
+
+
+def test_a_damaged_cached_base_policy_is_trained_again_with_one_line(
+    nav, tmp_path, monkeypatch, capsys
+):
+    """A base policy cached outside the repository (seed 1 here) whose weights no longer match
+    their digest is dropped and trained again; the user is told in one line."""
+    monkeypatch.setenv("DFA_CACHE", str(tmp_path))
+    first = B.base_policy(nav, seed=1)
+    folder = B.base_folder(nav, seed=1)
+    assert folder.is_relative_to(tmp_path)
+    raw = bytearray((folder / "model.safetensors").read_bytes())
+    raw[-7] ^= 0x01
+    (folder / "model.safetensors").write_bytes(bytes(raw))
+    capsys.readouterr()
+    again = B.base_policy(nav, seed=1)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the cached base policy is unusable" in err[0], err
+    assert "training it again" in err[0]
+    load_policy(folder, world=nav)  # its digest holds again
+    frames = nav.render_batch([nav.sample_scene(s) for s in range(4)])
+    assert again.outputs(frames).shape == first.outputs(frames).shape
+
+
+EVIL = """
+from pathlib import Path
+Path(__file__).with_name("IMPORTED").write_text("the module ran")
+def make():
+    Path(__file__).with_name("CALLED").write_text("the callable ran")
+"""
+
+
+def _named_code(folder, tmp_path, monkeypatch):
+    """A checkpoint whose config.json names a module that leaves a mark when imported."""
+    (tmp_path / "code_here.py").write_text(EVIL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    doc = json.loads((folder / "config.json").read_text())
+    doc.pop("policy")
+    doc["source"] = f"torch:code_here:make@{folder / 'model.safetensors'}"
+    (folder / "config.json").write_text(json.dumps(doc))
+    return folder
+
+
+def test_a_checkpoint_that_names_code_never_runs_it(nav, ckpt, tmp_path, monkeypatch, capsys):
+    """Only the command line may name a module: a folder's "source" is not followed, by `dfa
+    run --policy`, nor by a page session resuming a finetuned policy it saved."""
+    from dfa_viz.app.sessions import Session, SessionError
+    from dfa_viz.cli import main
+
+    folder = _named_code(ckpt, tmp_path, monkeypatch)
+    assert main(["run", "--policy", str(folder), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "which dfa does not follow" in err[0], err
+    session = Session.new(tmp_path / "sessions", world="nav2d")
+    try:
+        shutil.copytree(folder, session.folder / "policy-0001")
+        with pytest.raises(SessionError, match="which dfa does not follow"):
+            session.load_policy("policy-0001", nav, base=B.base_policy(nav))
+    finally:
+        session.close()
+    assert not (tmp_path / "IMPORTED").exists() and not (tmp_path / "CALLED").exists()
+
+
+def test_weights_without_the_policy_they_were_finetuned_from_are_one_line(capsys, tmp_path):
+    from dfa_viz.cli import main
+
+    assert main(["run", "--weights", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "finetuned weights go with the --policy" in err[0], err
