@@ -211,6 +211,29 @@ def test_out_naming_a_file_is_refused(capsys, tmp_path):
     assert (tmp_path / "f").read_text() == "keep"
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["run"],
+        ["bench"],
+        ["prior"],
+        ["serve"],
+        ["demo"],
+        ["sweep"],
+        ["experiment", "q2"],
+        ["experiment", "explain"],
+        ["study", "new"],
+    ],
+)
+def test_every_output_under_a_file_is_refused_before_any_work(capsys, tmp_path, command):
+    """Every subcommand that writes checks where it writes first: a path under a file is one
+    line at once (not after a 38 s fit), and the file is untouched."""
+    (tmp_path / "f").write_text("keep")
+    line = one_line_error(capsys, *command, "--out", str(tmp_path / "f" / "x.json"))
+    assert f"{tmp_path / 'f'} is a file, so nothing can be written under it" in line
+    assert (tmp_path / "f").read_text() == "keep"
+
+
 def test_malformed_demo_files(capsys, tmp_path, nav, nav_policy):
     from policy import failing_test_task
 
