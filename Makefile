@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m pip check
 	touch $(STAMP)
 
-# `make lock` refreshes $(LOCK) from pyproject.toml (runtime + test + ray extras), keeping each
+# `make lock` refreshes $(LOCK) from pyproject.toml (runtime + test + ray + robotics extras), keeping each
 # pin that pyproject.toml still allows; `make lock UPGRADE=1` moves every package to its newest
 # allowed release. uv comes from the package registry into tmp/. torch is resolved out (a
 # never-true marker), and the CPU build's own requirements (TORCH_DEPS, its Requires-Dist) are
@@ -35,7 +35,7 @@ lock:
 	printf '%s\n' 'torch; sys_platform == "never"' > tmp/lock/no-torch.txt
 	printf '%s\n' $(TORCH_DEPS) > tmp/lock/torch-2.13.0-requires.in
 	$(UV_VENV)/bin/uv pip compile --no-config -q pyproject.toml tmp/lock/torch-2.13.0-requires.in \
-	  --extra test --extra ray --override tmp/lock/no-torch.txt \
+	  --extra test --extra ray --extra robotics --override tmp/lock/no-torch.txt \
 	  --python-version 3.11 --python-platform x86_64-manylinux_2_28 \
 	  --generate-hashes --custom-compile-command 'make lock' $(if $(UPGRADE),--upgrade) -o $(LOCK)
 	! grep -iE '^(torch|triton|nvidia-|cuda-)' $(LOCK)

@@ -71,14 +71,14 @@ LIBRARY_Z_M = -50.0  # the static body holding every shape's collision geoms, ou
 def _add_assets(spec: mujoco.MjSpec) -> None:
     for name in C.TEXTURES:
         img = T.texture(name)  # (TEX_PX, TEX_PX, 3) uint8
-        spec.add_texture(
+        tex = spec.add_texture(
             name=f"tex:{name}",
             type=mujoco.mjtTexture.mjTEXTURE_2D,
             width=T.TEX_PX,
             height=T.TEX_PX,
             nchannel=3,
-            data=img.ravel().tolist(),
         )
+        tex.data = img.tobytes()
     for name in C.ALL_COLOURS:
         rgb = C.PLAIN_RGB.get(name, (255, 255, 255))
         mat = spec.add_material(
@@ -175,10 +175,14 @@ def build_spec() -> mujoco.MjSpec:
     spec.modelname = "tabletop"
     spec.option.timestep = TIMESTEP_S
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     # pools are rewritten at run time, so the compiled per-body BVHs would be stale
     spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
     # objects at rest (the goal and distractors during a carry) sleep until something hits them
-    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
+    if not hasattr(mujoco.mjtEnableBit, "mjENBL_SLEEP"):  # MuJoCo before 3.4
+        spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_MULTICCD
+    if hasattr(mujoco.mjtEnableBit, "mjENBL_SLEEP"):
+        spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
     spec.visual.headlight.ambient = [AMBIENT] * 3
     spec.visual.headlight.diffuse = [1.0 - AMBIENT] * 3
     spec.visual.headlight.specular = [0.0] * 3
@@ -195,12 +199,11 @@ def build_spec() -> mujoco.MjSpec:
         material="mat:table",
         group=GROUP_SHOWN,
     )
-    wb.add_camera(
-        name="top",
-        pos=[0.0, 0.0, 1.0],
-        proj=mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC,
-        fovy=2 * VIEW_HALF_M,
-    )
+    top = wb.add_camera(name="top", pos=[0.0, 0.0, 1.0], fovy=2 * VIEW_HALF_M)
+    if hasattr(top, "proj"):  # MuJoCo 3.4 on
+        top.proj = mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC
+    else:
+        top.orthographic = True
     wb.add_body(name="gripper", mocap=True, pos=[0.0, 0.0, 0.5])
     _add_library(spec)
     for k, slot in enumerate(SLOTS):
