@@ -3,8 +3,9 @@ their first valid edit, a naive loop (per candidate the edit made in place, one 
 a batch-1 forward), and (dfa_viz.bench.compositing) every edit up to size 2 on an `other` task
 against the forward-pass bound, with composited and with MuJoCo frames.
 
-Targets on 2 cores: all single edits <= 2 s; size 2 and size 3 to the first valid edit <= 30 s;
-every edit up to size 2 on `other` <= 2 s and within 2x of the bound.
+Targets on 2 cores: all single edits <= 2 s; an edited scene made and rendered in the batched
+path <= 5 ms; size 2 and size 3 to the first valid edit <= 30 s; every edit up to size 2 on
+`other` <= 2 s and within 2x of the bound.
 """
 
 from __future__ import annotations
@@ -18,7 +19,12 @@ from search import SearchConfig, count, counterfactual_search, rollout_lockstep,
 from sim import get_world
 from sim.core import Task
 
-TARGETS = {"singles_s": 2.0, "pairs_first_valid_s": 30.0, "triples_first_valid_s": 30.0}
+TARGETS = {
+    "singles_s": 2.0,
+    "edit_render_ms": 5.0,
+    "pairs_first_valid_s": 30.0,
+    "triples_first_valid_s": 30.0,
+}
 NAIVE_SAMPLE = 50  # naive candidates timed; the per-candidate time is extrapolated from them
 
 
@@ -163,7 +169,12 @@ def bench_rows(r: dict) -> list[tuple[str, str, str, bool | None]]:
             f"<= {TARGETS['singles_s']:.0f} s",
             r["singles_s"] <= TARGETS["singles_s"],
         ),
-        ("edit + render per scene", f"{r['edit_render_ms']:.2f} ms", "", None),
+        (
+            f"edit + render per scene (all {r['singles']} single edits in one batch)",
+            f"{r['edit_render_ms']:.2f} ms",
+            f"<= {TARGETS['edit_render_ms']:.0f} ms",
+            r["edit_render_ms"] <= TARGETS["edit_render_ms"],
+        ),
         (
             f"size-2 search to its first valid edit ({r['pairs_edit']}, pair "
             f"#{r['pairs_rank_of_first_valid']} in prior order)",

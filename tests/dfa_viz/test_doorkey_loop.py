@@ -5,18 +5,16 @@ fails shifted tasks of every kind, the planted cause found, finetuning that help
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
 import rerun as rr
-import torch
 
 from dfa_viz.cli import main
 from dfa_viz.loop import run_loop
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
-from search import SearchConfig, counterfactual_search
+from search import SearchConfig, counterfactual_search, singles
 from sim import get_world
 from sim.core import ABSENT, PRESENCE, PRESENT, SHIFTS
 from sim.doorkey.layout import LAVA_SLOTS, rows_of
@@ -106,30 +104,19 @@ def test_other_shift_has_no_counterfactual(world, policy, failing):
         assert {c.edit.size for c in result.tried} == {1, 2}
 
 
-@pytest.fixture
-def one_thread():
-    """Torch on one thread for a timing: two threads on two shared cores spin-wait on each
-    other when anything else runs, and the figure then measures the load, not the search."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-def test_size_one_search_is_interactive(world, policy, failing, one_thread):
-    """The whole size-1 search (every single edit, in lockstep) under 0.5 s, best of 5."""
+def test_size_one_search_tries_every_single_edit(world, policy, failing):
+    """The whole size-1 search: every single edit once, rolled out in lockstep. How long it
+    takes is `dfa bench`'s figure (the DoorKey size-1 search against its 0.5 s target, and the
+    search against its forward-pass bound measured in the same run)."""
     for shift in ("object_ti", "distractor_ti"):
         task, _ = failing(shift, 0)
         demo = world.demonstrate(task)
         config = SearchConfig(max_size=1)
-        best = float("inf")
-        for _ in range(5):
-            t0 = time.perf_counter()
-            result = counterfactual_search(world, policy, task.scene, demo, config=config)
-            best = min(best, time.perf_counter() - t0)
-        assert len(result.tried) >= 12
+        result = counterfactual_search(world, policy, task.scene, demo, config=config)
+        edits = singles(world.space, task.scene)
+        assert len(result.tried) == len(edits) >= 12
+        assert {c.edit for c in result.tried} == set(edits)
         assert result.found or shift == "distractor_ti"  # lava by the door: often two tiles
-        assert best < 0.5, f"{shift}: size-1 search took {best:.3f} s"
 
 
 @pytest.mark.parametrize("shift", ["object_ti", "distractor_ti"])
