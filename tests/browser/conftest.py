@@ -12,15 +12,32 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from playwright.sync_api import expect
 
-from dfa_viz.bench.page import ARGS, CHROMIUM
-from dfa_viz.configs import AdaptConfig, Finetuning  # one launch recipe for tests and bench
+from dfa_viz.bench.page import ARGS, CHROMIUM, WAIT_S  # one launch recipe for tests and bench
+from dfa_viz.configs import AdaptConfig, Finetuning
 
 VIEWPORT = {"width": 1600, "height": 1000}
+# Every wait here is for something the page shows (a text, an enabled button, the session's
+# state) and ends as soon as it is there. WAIT_S is a ceiling, not an expectation: it only turns
+# a page that never gets there into a failure. A job (loading a policy, a search, finetuning)
+# takes minutes on two cores that other work keeps busy; speed is measured by `dfa bench`.
+TEST_S = 60 * 60  # pytest-timeout for one test in this folder: a few jobs and one ceiling
+expect.set_options(timeout=WAIT_S * 1000)
 # a budget of 10 and 60 steps take nav2d distractor_ti from 30% to 100% on the shift and keep
 # the suite quick
 QUICK = AdaptConfig(budget=10, finetuning=Finetuning(steps=60, steps_per_trajectory=1))
 OUTPUT = Path(os.environ.get("DFA_TEST_OUTPUT", "recordings/test-output")) / "browser"
+
+
+def pytest_collection_modifyitems(items) -> None:
+    """Every test in this folder drives Chromium: marked `browser`, with TEST_S to run."""
+    here = Path(__file__).parent
+    for item in items:
+        if item.path.is_relative_to(here):
+            item.add_marker(pytest.mark.browser)
+            if item.get_closest_marker("timeout") is None:
+                item.add_marker(pytest.mark.timeout(TEST_S))
 
 
 def free_port() -> int:
@@ -75,6 +92,23 @@ def serve_app(tmp_path):
         app.stop()
 
 
+# True where viser's page will show "Software WebGL rendering detected" (its BrowserWarning.tsx).
+SOFTWARE_WEBGL = """() => {
+  let gl = null;
+  try {
+    const canvas = document.createElement("canvas");
+    gl = canvas.getContext("webgl2") || canvas.getContext("webgl");
+  } catch (e) {
+    return false;
+  }
+  const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+  if (!info) return false;
+  const name = String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL) ?? "").toLowerCase();
+  gl.getExtension("WEBGL_lose_context")?.loseContext();
+  return ["swiftshader", "llvmpipe", "softpipe", "software"].some((s) => name.includes(s));
+}"""
+
+
 class UI:
     """Helpers that act on a page the way a user does."""
 
@@ -85,38 +119,48 @@ class UI:
     def open(self, url: str):
         """A new tab on the page, once it is interactive."""
         page = self.browser.new_page(viewport=VIEWPORT)
-        page.set_default_timeout(120_000)  # jobs (loading a policy, a search) on 2 busy cores
+        page.set_default_timeout(WAIT_S * 1000)
         self.pages.append(page)
         page.goto(url)
-        page.get_by_role("button", name="Load task").wait_for(timeout=30_000)
+        page.get_by_role("button", name="Load task").wait_for()
         self.dismiss_notifications(page)
         return page
 
     @staticmethod
     def dismiss_notifications(page) -> None:
-        """Close viser's 'software WebGL' notice so that it covers nothing."""
-        try:
-            page.get_by_text("Software WebGL rendering detected").wait_for(timeout=3_000)
-        except Exception:
+        """Close viser's 'software WebGL' notice so that it covers nothing. Whether the page
+        shows it is decided the way viser decides it (BrowserWarning.tsx: the WebGL renderer's
+        name), so the notice is waited for exactly when it comes."""
+        if not page.evaluate(SOFTWARE_WEBGL):
             return
+        notice = page.get_by_text("Software WebGL rendering detected")
+        notice.wait_for()
         close = page.locator(".mantine-Notification-closeButton")
         for i in range(close.count()):
             close.nth(i).click()
+        notice.wait_for(state="hidden")
 
-    @staticmethod
-    def canvas_point(page, rgb, *, tol: int = 40) -> tuple[float, float]:
-        """Page coordinates of the centre of the pixels of colour `rgb` in the 3D view."""
-        canvases = page.locator("canvas")
-        boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
-        areas = [b["width"] * b["height"] if b else 0 for b in boxes]
-        canvas = canvases.nth(int(np.argmax(areas)))  # the 3D view, not a plot
-        box = boxes[int(np.argmax(areas))]
-        img = np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB")).astype(int)
-        ys, xs = np.nonzero(np.abs(img - np.array(rgb)).sum(axis=-1) < tol)
-        assert len(xs), f"no pixel of colour {rgb} in the 3D view"
-        sx, sy = box["width"] / img.shape[1], box["height"] / img.shape[0]
-        # the median: the red axis of viser's orientation gizmo must not pull the point away
-        return box["x"] + float(np.median(xs)) * sx, box["y"] + float(np.median(ys)) * sy
+    @classmethod
+    def canvas_point(cls, page, rgb, *, tol: int = 40) -> tuple[float, float]:
+        """Page coordinates of the centre of the pixels of colour `rgb` in the 3D view, once
+        they are drawn there and have stopped moving."""
+
+        def read() -> tuple[float, float] | None:
+            canvases = page.locator("canvas")
+            boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
+            areas = [b["width"] * b["height"] if b else 0 for b in boxes]
+            canvas = canvases.nth(int(np.argmax(areas)))  # the 3D view, not a plot
+            box = boxes[int(np.argmax(areas))]
+            img = np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB"))
+            ys, xs = np.nonzero(np.abs(img.astype(int) - np.array(rgb)).sum(axis=-1) < tol)
+            if not len(xs):
+                return None
+            sx, sy = box["width"] / img.shape[1], box["height"] / img.shape[0]
+            # the median: the red axis of viser's orientation gizmo must not pull it away
+            return box["x"] + float(np.median(xs)) * sx, box["y"] + float(np.median(ys)) * sy
+
+        cls.wait_until(lambda: read() is not None, f"a pixel of colour {rgb} in the 3D view")
+        return cls.wait_steady(read, f"the pixels of colour {rgb}")
 
     @staticmethod
     def frames(page):
@@ -124,8 +168,8 @@ class UI:
         return page.locator("img[src^='blob:']").first
 
     @staticmethod
-    def wait_for_text(page, text: str, timeout_s: float = 120.0):
-        page.get_by_text(text).first.wait_for(timeout=timeout_s * 1000)
+    def wait_for_text(page, text: str):
+        page.get_by_text(text).first.wait_for()
         return page.get_by_text(text).first
 
     @staticmethod
@@ -137,11 +181,22 @@ class UI:
         return int(m.group(1)), int(m.group(2))
 
     @staticmethod
-    def wait_until(cond, timeout_s: float = 30.0, what: str = "condition") -> None:
-        deadline = time.monotonic() + timeout_s
+    def wait_until(cond, what: str) -> None:
+        """Poll `cond` until it holds (WAIT_S at most)."""
+        deadline = time.monotonic() + WAIT_S
         while not cond():
-            assert time.monotonic() < deadline, f"timed out waiting for {what}"
+            assert time.monotonic() < deadline, f"waited {WAIT_S} s for {what}"
             time.sleep(0.05)
+
+    @staticmethod
+    def wait_steady(read, what: str):
+        """Poll `read` until two readings in a row are equal (something that moved has come
+        to rest); that reading. WAIT_S at most."""
+        deadline, last = time.monotonic() + WAIT_S, read()
+        while (now := read()) != last:
+            assert time.monotonic() < deadline, f"{what} still moving after {WAIT_S} s"
+            last = now
+        return now
 
     def close(self) -> None:
         for p in self.pages:
@@ -192,8 +247,10 @@ class ChildServer:
         for line in self.proc.stdout:
             self.lines.append(line)
 
-    def _wait_for(self, pattern: str, timeout_s: float = 120.0) -> str:
-        deadline = time.monotonic() + timeout_s
+    def _wait_for(self, pattern: str) -> str:
+        """The first group of `pattern` in the child's output, once it is there (the child
+        ending first, or WAIT_S passing, is a failure)."""
+        deadline = time.monotonic() + WAIT_S
         while time.monotonic() < deadline:
             for line in self.lines:
                 if m := re.search(pattern, line):

@@ -49,10 +49,11 @@ def test_the_demonstration_image_is_whole_and_clickable(serve_app, ui, shots, wi
     next_action = page.get_by_role("button", name="Continue: the expert shows it")
     expect(next_action).to_be_visible()
     assert _in_viewport(page, next_action)
-    page.wait_for_timeout(1000)  # the compare panel folds away
+    # the compare panel folds into a rail, and the image takes the room it leaves
+    page.locator("[data-dock-region=right] [data-dock-column-rail]").wait_for()
+    x0, y0, x1, y1 = ui.wait_steady(lambda: _image_box(page), "the demonstration image")
     page.screenshot(path=shots / f"demonstrate-{width}x{height}.png")
 
-    x0, y0, x1, y1 = _image_box(page)
     side = min(x1 - x0, y1 - y0)
     assert side >= 250, (x0, y0, x1, y1)  # big enough to aim at
     assert abs((x1 - x0) - (y1 - y0)) <= 4, "the square image is cut on one side"
@@ -80,7 +81,7 @@ def test_the_demonstration_image_is_whole_and_clickable(serve_app, ui, shots, wi
     assert _in_viewport(page, finetune)
     expect(page.get_by_role("button", name="✔ Task-irrelevant (TI)")).to_be_visible()
     finetune.click()
-    ui.wait_for_text(page, "fresh tasks with the shift", timeout_s=240)
+    ui.wait_for_text(page, "fresh tasks with the shift")
     another = page.get_by_role("button", name="Continue: another task")
     expect(another).to_be_visible()
     assert _in_viewport(page, another)

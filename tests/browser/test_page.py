@@ -64,7 +64,7 @@ def test_nav2d_loop_by_clicks(serve_app, ui, shots):
     expect(finetune).to_be_disabled()
     assert app.state.finetune() is False  # a second request while it runs is refused
     finetune.click(force=True)
-    ui.wait_for_text(page, "fresh tasks with the shift", timeout_s=240)
+    ui.wait_for_text(page, "fresh tasks with the shift")
     before_pct, after_pct = ui.success(page)
     assert after_pct > before_pct
     ui.wait_until(

@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 
 import pytest
-from conftest import UI, ChildServer  # tests/browser/conftest.py
+from conftest import UI, WAIT_S, ChildServer  # tests/browser/conftest.py
+from playwright.sync_api import expect
 
 from dfa_viz.study.analysis import write_analysis
 from dfa_viz.study.freeze import TRUTH, freeze
+from dfa_viz.study.page import MATTERS
 from dfa_viz.study.protocol import Protocol
 
 pytestmark = pytest.mark.browser
@@ -35,7 +36,7 @@ class Participant:
     def __init__(self, browser, url: str, pid: str, folder: Path, *, keyboard: bool, frames):
         self.pid, self.folder, self.keyboard = pid, folder, keyboard
         self.page = browser.new_page(viewport={"width": 1400, "height": 1000})
-        self.page.set_default_timeout(60_000)
+        self.page.set_default_timeout(WAIT_S * 1000)
         self.page.on("websocket", lambda ws: ws.on("framereceived", lambda f: frames.append(f)))
         self.page.goto(url)
         self.page.get_by_role("button", name="Start").wait_for()
@@ -86,19 +87,28 @@ class Participant:
         keys = [c["key"] for c in view["choices"]]
         ticked, none, matters = self.choice(position)
         page.get_by_role("button", name="Submit answer (Enter)").wait_for()
-        time.sleep(0.3)  # the keys are registered right after the button
         shown = page.content()
         assert ("What changed" in shown or "No change of the looks" in shown) == (
             self.plan()[position]["condition"] == "counterfactual"
         )  # the explanation only where the condition gives it
         if self.keyboard:
             page.locator("body").click(position={"x": 1300, "y": 900})  # focus off any field
+            # The keys reach the page after the button, in the order they were registered:
+            # Y / N (which only set the answer, so pressing again does no harm) until the page
+            # shows its answer; that answer came after every key, Enter included.
+            key, said = ("Y", MATTERS[1]) if matters else ("N", MATTERS[2])
+            matters_box = page.locator("input[role='combobox']:visible").first
+            UI.wait_until(
+                lambda: page.keyboard.press(key) or matters_box.input_value() == said,
+                f"the {key} key to answer {said!r}",
+            )
+            boxes = page.get_by_role("checkbox")
             for c in ticked:
                 page.keyboard.press(str(keys.index(c) + 1))
+                expect(boxes.nth(keys.index(c))).to_be_checked()
             if none:
                 page.keyboard.press("0")
-            page.keyboard.press("Y" if matters else "N")
-            time.sleep(0.3)
+                expect(boxes.nth(len(keys))).to_be_checked()
             page.keyboard.press("Enter")
         else:
             boxes = page.get_by_role("checkbox")

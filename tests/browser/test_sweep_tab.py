@@ -45,7 +45,7 @@ def test_a_heatmap_click_loads_that_failure(serve_app, ui, shots):
     page = ui.open(app.url)
     page.get_by_role("tab", name="Sweep").click()
     page.get_by_role("button", name="Run sweep").click()
-    ui.wait_until(lambda: app.state.sweep is not None, 120, "the sweep")
+    ui.wait_until(lambda: app.state.sweep is not None, "the sweep")
     shown = app.state.sweep
     expect(page.get_by_text("goal.colour=green").first).to_be_visible()
     expect(page.get_by_role("checkbox")).to_be_checked()
@@ -60,7 +60,7 @@ def test_a_heatmap_click_loads_that_failure(serve_app, ui, shots):
         shot = np.asarray(Image.open(io.BytesIO(canvas.screenshot())).convert("RGB"))
         return shot, _grey_box(shot)
 
-    ui.wait_until(lambda: _has_grey(canvas), 30, "the heatmap in the 3D view")
+    ui.wait_until(lambda: _has_grey(canvas), "the heatmap in the 3D view")
     shot, (sx0, sy0, sx1, sy1) = screen()
     ix0, iy0, ix1, iy1 = _grey_box(square)
     u, v = shown.heatmap.centre(target.key)  # in the unpadded image
@@ -73,7 +73,7 @@ def test_a_heatmap_click_loads_that_failure(serve_app, ui, shots):
     page.mouse.click(x, y)
 
     # the failure is the task now: training task 0 with the goal turned green, to diagnose
-    ui.wait_until(lambda: app.state.record is not None, 60, "the task to load")
+    ui.wait_until(lambda: app.state.record is not None, "the task to load")
     rec = app.state.record
     assert rec.shift == "sweep" and rec.seed == target.example.seed
     assert rec.task.scene.obj("goal").value("colour") == "green"

@@ -99,22 +99,31 @@ def test_minigrid_and_an_sb3_agent_by_keys(serve_app, ui, shots):
     finetune = page.get_by_role("button", name="Augment & finetune")
     expect(finetune).to_be_enabled()
     finetune.click()
-    ui.wait_for_text(page, "fresh tasks with the shift", timeout_s=240)
+    ui.wait_for_text(page, "fresh tasks with the shift")
     page.screenshot(path=shots / "1-adapted.png")
     before_pct, after_pct = ui.success(page)
     assert app.state.record.adaptation.policy.source.startswith("sb3:")
     assert after_pct > before_pct, (before_pct, after_pct)
 
 
-def _plane_box(page, grey=(128, 128, 128), tol=12):
-    """Screen box (x0, y0, x1, y1) of the tabletop image in the 3D view (the grey table)."""
+def _view(page):
+    """The 3D view's canvas (the largest one)."""
     canvases = page.locator("canvas")
     boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
-    i = int(np.argmax([b["width"] * b["height"] if b else 0 for b in boxes]))
-    img = np.asarray(Image.open(io.BytesIO(canvases.nth(i).screenshot())).convert("RGB"))
+    return canvases.nth(int(np.argmax([b["width"] * b["height"] if b else 0 for b in boxes])))
+
+
+def _plane_box(page, grey=(128, 128, 128), tol=12):
+    """Screen box (x0, y0, x1, y1) of the tabletop image in the 3D view (the grey table);
+    None while it is not drawn."""
+    view = _view(page)
+    box = view.bounding_box()
+    img = np.asarray(Image.open(io.BytesIO(view.screenshot())).convert("RGB"))
     ys, xs = np.nonzero(np.abs(img.astype(int) - np.array(grey)).sum(axis=-1) < tol)
-    sx, sy = boxes[i]["width"] / img.shape[1], boxes[i]["height"] / img.shape[0]
-    x0, y0 = boxes[i]["x"], boxes[i]["y"]
+    if not len(xs):
+        return None
+    sx, sy = box["width"] / img.shape[1], box["height"] / img.shape[0]
+    x0, y0 = box["x"], box["y"]
     return (
         x0 + xs.min() * sx,
         y0 + ys.min() * sy,
@@ -132,7 +141,8 @@ def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
     page.get_by_role("button", name="Failed").click()
     ui.wait_for_text(page, "Click the object to pick")
     task = app.state.record.task
-    x0, y0, x1, y1 = _plane_box(page)
+    ui.wait_until(lambda: _plane_box(page) is not None, "the table in the 3D view")
+    x0, y0, x1, y1 = ui.wait_steady(lambda: _plane_box(page), "the table in the 3D view")
     for slot in ("object", "goal"):  # pick the object, place it on the goal
         x, y = task.scene.obj(slot).pos[:2]
         u, v = (x + VIEW_HALF_M) / (2 * VIEW_HALF_M), (VIEW_HALF_M - y) / (2 * VIEW_HALF_M)
@@ -141,9 +151,12 @@ def test_tabletop_pick_and_place_by_clicks(serve_app, ui, shots):
     page.screenshot(path=shots / "0-demonstrated.png")
     page.get_by_role("button", name="Use my demonstration").click()
     page.get_by_text("edits tried").first.wait_for()
+    frames = ui.frames(page)
+    before = frames.screenshot()
     page.get_by_role("button", name="step ▶").click()  # after the pick-and-place
     expect(page.get_by_role("slider")).to_have_attribute("aria-valuenow", "1")
-    page.wait_for_timeout(1000)  # let the frames and the 3D meshes follow
+    ui.wait_until(lambda: frames.screenshot() != before, "the frames to follow the step")
+    ui.wait_steady(lambda: _view(page).screenshot(), "the 3D view")
     page.screenshot(path=shots / "1-diagnosis.png")
 
     run = app.state.record

@@ -110,15 +110,15 @@ def test_one_task_gives_one_answer_through_dfa_run_the_page_and_the_experiment(n
     state = open_state(session=tmp_path / "s", out=tmp_path)
     try:
         state.pick("nav2d", "object_ti", 0)
-        wait_idle(state)
+        wait_idle(state, timeout_s=1200)  # a ceiling: the job takes seconds
         state.judge(True)
         state.demonstrate(expert=True)
-        wait_idle(state)
+        wait_idle(state, timeout_s=1200)
         for c in state.record.edit.ordered:  # as the simulated user of `dfa run` marks it
             values = acceptable_if_irrelevant(nav, cli.task.reward, c.slot, c.concept)
             state.mark(c.slot, c.concept, relevant=False, acceptable=values)
         assert state.finetune()
-        wait_idle(state)
+        wait_idle(state, timeout_s=1200)
         page = state.record
     finally:
         state.close()

@@ -37,15 +37,17 @@ def test_pauses_nest_and_overlap_and_keep_a_disabled_collector_disabled():
     def other():
         with collector_paused():
             inside.set()
-            leave.wait(10)
+            leave.wait()
 
-    t = threading.Thread(target=other)
-    with collector_paused():
-        t.start()
-        inside.wait(10)
-    assert not gc.isenabled()
-    leave.set()
-    t.join(10)
+    t = threading.Thread(target=other, daemon=True)
+    try:
+        with collector_paused():
+            t.start()
+            inside.wait()  # the other thread is inside its pause
+        assert not gc.isenabled()
+    finally:
+        leave.set()
+    t.join()
     assert gc.isenabled()
     gc.disable()
     try:
