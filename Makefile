@@ -60,9 +60,12 @@ demo: setup
 	$(VENV)/bin/dfa demo
 
 # The whole suite twice: torch on one thread, then on two (tests/conftest.py reads DFA_TORCH_THREADS).
+# Each run goes to its end, so that one failure hides no other; the target fails if either failed.
 test: setup
-	DFA_TORCH_THREADS=1 $(PY) -m pytest -x -q
-	DFA_TORCH_THREADS=2 $(PY) -m pytest -x -q
+	one=0; DFA_TORCH_THREADS=1 $(PY) -m pytest -q || one=$$?; \
+	two=0; DFA_TORCH_THREADS=2 $(PY) -m pytest -q || two=$$?; \
+	echo "make test: exit $$one with torch on one thread, $$two on two"; \
+	[ $$one -eq 0 ] && [ $$two -eq 0 ]
 
 bench: setup
 	$(VENV)/bin/dfa bench
