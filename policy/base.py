@@ -96,7 +96,10 @@ def recipe_change(then: dict, now: dict) -> str | None:
                 for x, y in zip(a, b, strict=True)
             )
             if not same:
-                return "the training frames look different (the renderer or the tasks changed)"
+                return (
+                    "the training frames look different "
+                    "(the renderer, the tasks or the cached views changed)"
+                )
         elif isinstance(a, dict) and isinstance(b, dict):
             for k in sorted(set(a) | set(b)):
                 if a.get(k) != b.get(k):
@@ -141,10 +144,17 @@ def base_policy(
         then = read_config(folder).get("meta", {}).get("recipe", {})
         change = recipe_change(then, now)
         if change is not None:
+            first = ""
+            if change.startswith("the training frames look different"):
+                first = (
+                    "if they were drawn from damaged cached views, delete the cache "
+                    f"{files.cache_dir()} ($DFA_CACHE, else ~/.cache/dfa) and run again; "
+                    "if they still differ, "
+                )
             raise UserError(
                 f"the committed {world.name} base policy ({folder}) was trained with another "
-                f"recipe ({change}); retrain it with `dfa train --retrain --worlds "
-                f"{world.name}` and commit {folder}"
+                f"recipe ({change}); {first}retrain the policy with `dfa train --retrain "
+                f"--worlds {world.name}` and commit {folder}"
             )
         return load_policy(folder, world=world)
     if not retrain and (folder / "model.safetensors").is_file():

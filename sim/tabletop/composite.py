@@ -26,6 +26,7 @@ same `draw`.
 
 from __future__ import annotations
 
+import sys
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -34,7 +35,7 @@ import numpy as np
 
 from sim.core import Obj, Scene
 from sim.tabletop.tasks import AREAS, VIEW_HALF_M, WORLD, pose
-from sim.tabletop.top_view import PIXEL, Key, TopView, ViewIndex, grid_pixel, grow, same
+from sim.tabletop.top_view import PIXEL, Key, TopView, ViewIndex, grid_pixel, grow
 
 SLOTS = ("object", "goal", "distractor0", "distractor1")
 QUADRANTS = ("top-left", "top-right", "bottom-left", "bottom-right")  # one slot each
@@ -42,6 +43,14 @@ CACHE_BYTES = 32 * 2**20  # all 29 x 81 views of the default appearances: about 
 Draw = Callable[[Sequence[Scene]], np.ndarray]  # scenes -> uint8 (B, H, W, 3), MuJoCo's
 Group = tuple[tuple[Key, tuple[int, int]], ...]  # touching objects' (view, pixel), slot order
 GROUP_VIEWS = 4096  # views of touching groups kept (a few KiB each), least recently used out
+# one frame of views that names the renderer of a store file: thin strokes, curves, textures and
+# a large goal's rim, where another GL driver draws some pixel otherwise
+PROBE: tuple[Key, ...] = (
+    ("letter R", "tiger"),
+    ("star", "rainbow"),
+    ("heart", "dark purple"),
+    ("frame", "checkerboard"),
+)
 
 
 class Compositor:
@@ -77,6 +86,7 @@ class Compositor:
             WORLD, tuple(Obj(s, False, like.obj(s).values, like.obj(s).pos) for s in SLOTS), (0.0,)
         )
         self.table = draw([self._empty])[0]  # (H, W, 3) uint8: the bare table
+        self.renderer: str | None = None  # view_store.fingerprint of PROBE, with a store
         if store is not None:
             self._open(store)
 
@@ -90,25 +100,28 @@ class Compositor:
     def reopen(self) -> None:
         """Empty the cache and read the stored views again, as a new process would."""
         self.clear()
+        self.renderer = None  # named again from a fresh drawing, as a new process names it
         if self.store is not None:
             self._open(self.store)
 
     def _open(self, store: Path) -> None:
-        """Take the views kept in `store` (sim.tabletop.view_store) when a few of them, drawn
-        again now, are the same pixels; otherwise start empty (the file is written anew)."""
+        """Take the views kept in `store` (sim.tabletop.view_store) that this renderer drew
+        (the file names the renderer by how it draws `PROBE`, drawn here once) and whose
+        digests match; print one line to stderr when any are dropped (they are drawn again)."""
         from sim.tabletop import view_store
 
-        kept = view_store.load(store)
-        probe = list(kept)[: len(QUADRANTS)]
-        self.store = None  # drawing the probe must not write the file over before it is read
-        try:
-            fresh = self.top_views(probe)
-        finally:
-            self.store = store
-        if all(same(fresh[k], kept[k]) for k in probe):
-            for k, v in kept.items():
-                if k not in self.views:
-                    self._keep(k, v)
+        if self.renderer is None:
+            self.store = None  # drawing the probe must not write the file before it is read
+            try:
+                self.renderer = view_store.fingerprint(self.top_views(PROBE))
+            finally:
+                self.store = store
+        stored = view_store.read(store, renderer=self.renderer)
+        if stored.problem is not None:
+            print(f"dfa: {stored.problem}", file=sys.stderr)
+        for k, v in stored.views.items():
+            if k not in self.views:
+                self._keep(k, v)
 
     def _keep(self, key: Key, view: TopView) -> None:
         self.views[key] = view
@@ -143,7 +156,7 @@ class Compositor:
             if self.store is not None:
                 from sim.tabletop import view_store
 
-                view_store.save(self.store, self.views)
+                view_store.save(self.store, self.views, renderer=self.renderer)
         return got
 
     def _studio(self, keys: Sequence[Key], areas: Sequence[str]) -> Scene:
