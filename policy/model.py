@@ -24,12 +24,52 @@ class PolicyConfig:
     discrete: bool
     """True: logits head and cross-entropy. False: regression head and L2."""
     channels: tuple[int, int, int] = (32, 64, 32)
-    kernels: tuple[int, int, int] = (8, 4, 3)
-    strides: tuple[int, int, int] = (4, 2, 1)
+    kernels: tuple[int, int, int] | None = None
+    """Square kernels of the three convolutions; None: the paper's (8, 4, 3) where the frames
+    are large enough for them, else the first of TRUNKS that fits (fitted_trunk)."""
+    strides: tuple[int, int, int] | None = None
+    """Their strides; None: as `kernels` (the paper's (4, 2, 1))."""
     hidden: int = 100
+
+    def __post_init__(self) -> None:
+        if self.kernels is None or self.strides is None:
+            kernels, strides = fitted_trunk(self.obs_shape)
+            object.__setattr__(self, "kernels", self.kernels or kernels)
+            object.__setattr__(self, "strides", self.strides or strides)
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+TRUNKS = (
+    ((8, 4, 3), (4, 2, 1)),  # the paper's: frames of 36 px and more
+    ((8, 4, 3), (2, 2, 1)),  # 22 px and more
+    ((8, 4, 3), (2, 1, 1)),  # 18
+    ((4, 4, 3), (2, 1, 1)),  # 14
+    ((3, 3, 3), (1, 1, 1)),  # 7
+    ((2, 2, 2), (1, 1, 1)),  # 4
+    ((1, 1, 1), (1, 1, 1)),  # any
+)
+"""Kernels and strides from the paper's trunk down, each fitting smaller frames."""
+
+
+def smallest_side(kernels, strides) -> int:
+    """The smallest frame side (px) the convolutions leave at least one pixel of."""
+    side = 1
+    for k, s in zip(reversed(kernels), reversed(strides), strict=True):
+        side = (side - 1) * s + k
+    return side
+
+
+def fitted_trunk(obs_shape) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    """(kernels, strides): the first of TRUNKS whose convolutions fit frames of `obs_shape`
+    (H, W, 3), judged by the smaller side: the paper's trunk wherever it fits, so that every
+    policy that could be built before is built the same."""
+    side = min(int(obs_shape[0]), int(obs_shape[1]))
+    for kernels, strides in TRUNKS:
+        if smallest_side(kernels, strides) <= side:
+            return kernels, strides
+    return TRUNKS[-1]
 
 
 class ImagePolicy(nn.Module):
