@@ -1,0 +1,1 @@
+"""gymnasium-robotics' Fetch tasks as worlds (`fetch:<EnvId>`); see sim.fetch.world."""

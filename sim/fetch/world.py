@@ -1,0 +1,176 @@
+"""gymnasium-robotics' Fetch tasks as worlds: `fetch:<EnvId>` for FetchPickAndPlace-v4,
+FetchPush-v4, FetchSlide-v4 and FetchReach-v4, through the generic MuJoCo layer
+(sim.mjworld): the environment's own model, controller, step, camera and success.
+
+Concepts  object (the block or puck; not in Reach), target (the goal marker), table: colour
+          over sim.mjworld.model.PALETTE (the model's own colours are its "dark grey", "red",
+          "light grey"); distractor0 (kind "distractor", optional): a spare block, colour
+Actions   Fetch's own 4: gripper (dx, dy, dz) and fingers, each in [-1, 1]; 50 steps
+Shifts    object_ti (the object or the table recoloured), object_tr (the target recoloured, R'
+          names its colour), distractor_ti (a block added clear of the way), distractor_tr (a
+          block added, R' says leave it where it is), other (the object starts where training
+          never put it: far along +x)
+Success   the environment's own `_is_success` (the object, or the gripper in Reach, within
+          0.05 m of the goal) at the last step
+
+Frames are the environment's own `render()` at 84 x 84 from a camera over the table (CAMERA),
+passed to the environment as its default_camera_config.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from collections.abc import Callable
+
+import gymnasium
+import numpy as np
+
+from sim.core import UserError
+from sim.fetch import expert as X
+from sim.mjworld.world import MujocoWorld, SlotSpec
+
+TASKS = {
+    "FetchPickAndPlace-v4": ("put the block on the target", X.pick_and_place),
+    "FetchPush-v4": ("push the block onto the target", X.push),
+    "FetchSlide-v4": ("slide the puck onto the target", X.push),
+    "FetchReach-v4": ("move the gripper to the target", X.reach),
+}
+SIZE_PX = 84
+CAMERA = {  # from the side, over the table: the arm hides little of the workspace
+    "distance": 0.9,
+    "azimuth": 90.0,
+    "elevation": -50.0,
+    "lookat": np.array([1.32, 0.75, 0.45]),
+}
+SLIDE_CAMERA = {**CAMERA, "distance": 1.5, "elevation": -50.0, "lookat": np.array([1.2, 0.75, 0.4])}
+
+
+def parse(rest: str) -> str:
+    """The env id of "fetch:<EnvId>", checked."""
+    if rest not in TASKS:
+        raise UserError(f"fetch:{rest}: not a Fetch task; accepted: {', '.join(TASKS)}")
+    return rest
+
+
+def fetch_world(rest: str) -> FetchWorld:
+    """The registry's factory for names "fetch:<EnvId>"."""
+    return FetchWorld(parse(rest))
+
+
+def register_robotics() -> None:
+    """gymnasium-robotics' environments in gymnasium's registry (its import prints a note about
+    other environments; that note is not ours to print)."""
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            import gymnasium_robotics
+    except ImportError:
+        raise UserError(
+            "the Fetch worlds need gymnasium-robotics: pip install -e '.[robotics]'"
+        ) from None
+    gymnasium.register_envs(gymnasium_robotics)
+
+
+class FetchWorld(MujocoWorld):
+    """One Fetch task; see the module docstring."""
+
+    epsilon = 0.25  # per step, L1 over the 4 action components
+    action_names = ("gripper dx", "gripper dy", "gripper dz", "fingers")
+
+    def __init__(self, env_id: str) -> None:
+        self.env_id = env_id
+        self.instruction, self._expert = TASKS[env_id]
+        has_object = env_id != "FetchReach-v4"
+        self.slot_specs = (
+            *((SlotSpec("object", body="object0", moves=True),) if has_object else ()),
+            SlotSpec("target", site="target0"),
+            SlotSpec("table", body="table0"),
+        )
+        self.camera = SLIDE_CAMERA if env_id == "FetchSlide-v4" else CAMERA
+        super().__init__(f"fetch:{env_id}", horizon=50, action_dim=4, size_px=SIZE_PX)
+
+    # -- hooks ------------------------------------------------------------------------------
+    def open_env(self, add_bodies: Callable):
+        register_robotics()
+        spec = gymnasium.registry[self.env_id]
+        module, _, name = spec.entry_point.partition(":")
+        import importlib
+
+        base = getattr(importlib.import_module(module), name)
+
+        class WithBodies(base):
+            def _initialize_simulation(self):  # the env's own, with the bodies added first
+                import mujoco
+
+                model_spec = mujoco.MjSpec.from_file(self.fullpath)
+                add_bodies(model_spec)
+                self.model = model_spec.compile()
+                self.data = mujoco.MjData(self.model)
+                self._model_names = self._utils.MujocoModelNames(self.model)
+                self.model.vis.global_.offwidth = self.width
+                self.model.vis.global_.offheight = self.height
+                self._env_setup(initial_qpos=self.initial_qpos)
+                self.initial_time = self.data.time
+                self.initial_qpos = np.copy(self.data.qpos)
+                self.initial_qvel = np.copy(self.data.qvel)
+
+        env = WithBodies(
+            render_mode="rgb_array",
+            width=self.size_px,
+            height=self.size_px,
+            default_camera_config=self.camera,
+            **spec.kwargs,
+        )
+        env.reset(seed=0)
+        return env
+
+    def before_render(self, env) -> None:
+        env._render_callback()  # the target marker at the goal, as Fetch's render() puts it
+
+    def env_step(self, env, action: np.ndarray) -> bool:
+        _, _, _, _, info = env.step(np.asarray(action, np.float32))
+        return bool(info["is_success"])
+
+    def env_success(self, env) -> bool:
+        obs = env._get_obs()
+        return bool(env._is_success(obs["achieved_goal"], env.goal))
+
+    def goal(self, env) -> np.ndarray:
+        return np.array(env.goal, float)
+
+    def set_goal(self, env, goal: np.ndarray) -> None:
+        env.goal = np.array(goal, float)
+
+    # -- the expert ---------------------------------------------------------------------------
+    def expert_action(self, task, scene) -> np.ndarray:
+        with self._lock:
+            env = self.restore(scene)
+            d, m = env.data, env.model
+            grip = np.array(d.site("robot0:grip").xpos)
+            obj = np.array(d.site("object0").xpos) if self.env_id != "FetchReach-v4" else None
+            width = sum(
+                float(d.qpos[m.joint(f"robot0:{s}_gripper_finger_joint").qposadr[0]]) for s in "lr"
+            )
+            goal = self.goal_of(scene)
+        return self._expert(grip, obj, goal, width)
+
+    # -- tasks ---------------------------------------------------------------------------------
+    def train_task(self, seed: int = 0):
+        from sim.fetch import tasks as TK
+
+        return TK.train_task(self, seed)
+
+    def test_task(self, shift: str, seed: int):
+        from sim.fetch import tasks as TK
+
+        return TK.test_task(self, shift, seed)
+
+    def fresh_tasks(self, task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False):
+        from sim.fetch import tasks as TK
+
+        return TK.fresh_tasks(self, task, n, seed, layouts=layouts, shifted=shifted)
+
+    def placements(self, task, slot: str, demo) -> list[tuple[float, ...]]:
+        from sim.fetch import tasks as TK
+
+        return TK.placements(self, task, demo)

@@ -1,0 +1,147 @@
+"""Fetch worlds: the environment's own frames, steps and success, a concept space read from its
+model, shifts that every scripted demonstration solves, and one line for what is not a Fetch
+task."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import sim
+from sim.core import SHIFTS
+from sim.fetch.world import CAMERA, register_robotics
+
+PICK = "fetch:FetchPickAndPlace-v4"
+
+
+@pytest.fixture(scope="module")
+def world():
+    return sim.get_world(PICK)
+
+
+def _stock(env_id: str):
+    """The environment as gymnasium makes it, with the same camera."""
+    register_robotics()
+    return gymnasium.make(
+        env_id, render_mode="rgb_array", width=84, height=84, default_camera_config=CAMERA
+    ).unwrapped
+
+
+def _render(stock) -> np.ndarray:
+    """The stock environment's render(), its GL context made current first (the world's
+    renderer lets its own go after each batch)."""
+    stock.mujoco_renderer._get_viewer("rgb_array").make_context_current()
+    return stock.render()
+
+
+def test_the_concept_space_is_read_from_the_model(world):
+    slots = {s.name: s for s in world.space.slots}
+    assert list(slots) == ["object", "target", "table", "distractor0"]
+    assert world.built == {
+        "object": "dark grey",  # Fetch's block_mat
+        "target": "red",  # its target0 site
+        "table": "light grey",  # its table_mat
+        "distractor0": "blue",
+    }
+    assert slots["distractor0"].optional and not slots["object"].optional
+    reach = sim.get_world("fetch:FetchReach-v4")
+    assert [s.name for s in reach.space.slots] == ["target", "table", "distractor0"]
+
+
+@pytest.mark.parametrize("env_id", ["FetchPickAndPlace-v4", "FetchPush-v4", "FetchReach-v4"])
+def test_a_rollout_in_dfa_is_the_environments_own(env_id):
+    """From the same reset, the stock environment, run as an image policy runs it (render,
+    act, step), and the world step the same actions to the same states, the same success and
+    the same frames (the world's model only adds a parked distractor that touches nothing)."""
+    world = sim.get_world(f"fetch:{env_id}")
+    stock = _stock(env_id)
+    for seed in (3, 4):
+        stock.reset(seed=seed)
+        like = world.sample_scene(0)  # (a reset of the world's own environment)
+        scene = world.scene_of(stock_state_into(world, stock), 0, like)
+        task = world.task_for(scene)
+        rng = np.random.default_rng(seed)
+        for t in range(world.horizon):
+            a = world.expert_action(task, scene) + rng.normal(0, 0.2, 4).astype(np.float32)
+            a = np.clip(a, -1, 1).astype(np.float32)
+            frame = _render(stock)  # an image policy's loop: render, act, step
+            _, _, _, _, info = stock.step(a)
+            before, scene = scene, world.step_batch([scene], a[None])[0]
+            here = world.restore(scene).data
+            n = stock.model.nq
+            np.testing.assert_allclose(here.qpos[:n], stock.data.qpos, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(here.qvel[: stock.model.nv], stock.data.qvel, atol=1e-8)
+            assert world.succeeds(scene) == bool(info["is_success"])
+            if t % 10 == 0:
+                np.testing.assert_array_equal(world.render(before), frame)
+
+
+def stock_state_into(world, stock):
+    """The world's environment put in the stock environment's state: its model is the stock
+    one with the distractors' bodies appended, so the stock state is a prefix of its own."""
+    import mujoco
+
+    env = world.restore(world.sample_scene(0))
+    m, d = stock.model, stock.data
+    assert [env.model.joint(i).name for i in range(m.njnt)] == [
+        m.joint(i).name for i in range(m.njnt)
+    ]
+    env.data.qpos[: m.nq] = d.qpos
+    env.data.qvel[: m.nv] = d.qvel
+    env.data.qacc_warmstart[: m.nv] = d.qacc_warmstart
+    env.data.ctrl[:] = d.ctrl
+    env.data.mocap_pos[:] = d.mocap_pos
+    env.data.mocap_quat[:] = d.mocap_quat
+    env.data.time = d.time
+    env.goal = stock.goal.copy()
+    mujoco.mj_forward(env.model, env.data)
+    return env
+
+
+def test_frames_are_the_environments_render_in_every_look(world):
+    scenes = [world.test_task(shift, s).scene for shift in SHIFTS for s in range(2)]
+    ours = world.render_batch(scenes)
+    theirs = np.stack([world.restore(s).render() for s in scenes])
+    assert np.array_equal(ours, theirs)
+    recoloured = world.test_task("object_ti", 0)
+    assert not np.array_equal(
+        world.render(recoloured.scene), world.render(world.train_task(0).scene)
+    )
+
+
+def test_every_shift_is_solved_by_the_expert_and_carries_its_cause(world):
+    for shift in SHIFTS:
+        for seed in range(3):
+            task = world.test_task(shift, seed)
+            assert world.demonstrate(task).success, (shift, seed, task.reward.instruction)
+            if shift == "other":
+                assert task.cause is None
+            elif shift.startswith("distractor"):
+                assert task.scene.obj("distractor0").present
+            else:
+                slot, concept = task.cause
+                assert task.scene.obj(slot).value(concept) != world.built[slot]
+
+
+def test_a_distractor_starts_where_the_scene_says_and_waits_out_of_view_when_absent(world):
+    task = world.test_task("distractor_ti", 0)
+    env = world.restore(task.scene)
+    np.testing.assert_allclose(
+        env.data.body("distractor0").xpos, task.scene.obj("distractor0").pos[:3]
+    )
+    absent = world.train_task(0).scene
+    frames_without = world.render(absent)
+    env = world.restore(absent)
+    assert env.data.body("distractor0").xpos[1] < -1.0  # parked far to the side
+    moved = world.step_batch([absent], np.zeros((1, 4), np.float32))[0]
+    assert moved.agent[world.head :] != absent.agent[world.head :]
+    assert frames_without.shape == (84, 84, 3)
+
+
+def test_what_is_not_a_fetch_task_is_one_line(capsys):
+    from dfa_viz.cli import main
+
+    assert main(["run", "--world", "fetch:FetchJuggle-v4"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a Fetch task; accepted: FetchPickAndPlace-v4" in err[0]
