@@ -9,10 +9,13 @@ from sim import get_world
 def format_report(r: RunRecord) -> str:
     t = r.task
     lines = [f'{r.world} / {r.shift} / seed {r.seed} (task {t.seed}): "{t.reward.instruction}"']
+    world = get_world(r.world)
+    space = world.space
+    lines += [f"  note: {line}" for line in world.notes(t)]
     if not r.failed:
         lines.append("  the policy succeeded: nothing to diagnose")
         return "\n".join(lines)
-    lines.append("  failed: the base policy's rollout misses what the user wants")
+    lines.append("  failed: the policy's rollout misses what the user wants")
     d = r.diagnosis
     if d is None or not d.result.found:
         tried = len(d.result.tried) if d else 0
@@ -26,7 +29,6 @@ def format_report(r: RunRecord) -> str:
         lines.append(f"  counterfactual (size {s.size}, {len(s.tried)} edits tried): {best.edit}")
         for c in ties:
             lines.append(f"    also minimal: {c.edit}")
-    space = get_world(r.world).space
     for lab in r.feedback.labels:
         fine = space.describe(lab.slot, lab.concept, lab.acceptable)
         kind = "TR" if lab.relevant else f"TI (acceptable: {fine})"

@@ -23,6 +23,20 @@ DemoInput = Literal["waypoints", "keys", "pick_place", "file"]
 
 
 @dataclass(frozen=True)
+class Cloning:
+    """How a world's base policy is cloned from its expert (policy.base, policy.train)."""
+
+    demonstrations: int = 10
+    """Training tasks, one expert demonstration each (the paper's 10)."""
+    steps: int = 400
+    """Gradient steps."""
+    noise: float = 0.0
+    """Standard deviation of the noise added to the actions a demonstration executes, while it
+    keeps the expert's own action as the label (closed-loop worlds: the policy then sees the
+    states its small mistakes lead to, and how the expert recovers from them)."""
+
+
+@dataclass(frozen=True)
 class Key:
     """A discrete action the page offers as a button and a hotkey (demo_input "keys")."""
 
@@ -64,6 +78,7 @@ class World(abc.ABC):
         view3d: a 3D scene (sim.core.view3d.View3D), or None.
         action_names: a name per continuous action dimension for plots (default "action k").
         shifts: the shift kinds `test_task` makes (Benchmark worlds).
+        cloning: how its base policy is cloned (Cloning: demonstrations, steps, action noise).
     """
 
     name: str
@@ -83,6 +98,7 @@ class World(abc.ABC):
     view3d: View3D | None = None
     action_names: tuple[str, ...] = ()
     shifts: tuple[str, ...] = ()
+    cloning: Cloning = Cloning()
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
 
@@ -139,6 +155,11 @@ class World(abc.ABC):
             "user",
             0,
         )
+
+    def notes(self, task: Task) -> tuple[str, ...]:
+        """What a report says about a task beside its instruction, a line each (() by
+        default; MiniGrid: that the mission names a target the frames do not show)."""
+        return ()
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         """Positions for adding `slot` to the demonstration's scenes without blocking its path
@@ -246,12 +267,18 @@ class Benchmark(World):
     def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
         """The scripted demonstrator's action in `scene`: float32 (A,) or int64 scalar."""
 
-    def demonstrate(self, task: Task) -> Trajectory:
-        """The scripted expert's closed-loop demonstration of `task`."""
+    def demonstrate(self, task: Task, *, noise: float = 0.0, seed: int = 0) -> Trajectory:
+        """The scripted expert's closed-loop demonstration of `task`. With `noise`, each step
+        executes the expert's action plus Gaussian noise of that standard deviation (seeded,
+        clipped to [-1, 1]) and records the expert's own action (continuous worlds)."""
+        rng = np.random.default_rng([seed, 11])
         scenes, actions = [task.scene], []
         for _ in range(self.horizon):
             a = np.asarray(self.expert_action(task, scenes[-1]))
-            scenes.append(self.step_batch([scenes[-1]], a[None])[0])
+            done = a
+            if noise > 0:
+                done = np.clip(a + rng.normal(0.0, noise, a.shape), -1.0, 1.0).astype(a.dtype)
+            scenes.append(self.step_batch([scenes[-1]], done[None])[0])
             actions.append(a)
         obs = self.render_batch(scenes)  # (T+1, H, W, 3)
         return Trajectory(tuple(scenes), obs, np.stack(actions), self.success(task, scenes))

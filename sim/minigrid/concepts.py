@@ -16,6 +16,7 @@ from collections import Counter
 from minigrid.core.constants import COLOR_NAMES
 
 from sim.core import Concept, ConceptSpace, Slot
+from sim.minigrid.state import reset
 
 SAMPLE_LAYOUTS = 20
 TYPES = ("key", "door", "ball", "box", "goal", "lava")  # the object types that become slots
@@ -29,7 +30,7 @@ def count_objects(env, seeds) -> Counter:
     """The most objects of each type any of the layouts of `seeds` has."""
     most: Counter = Counter()
     for seed in seeds:
-        env.reset(seed=int(seed))
+        reset(env, seed)
         here = Counter(o.type for o in env.grid.grid if o is not None and o.type in TYPES)
         for t, n in here.items():
             most[t] = max(most[t], n)

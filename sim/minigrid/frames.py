@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from minigrid.core.grid import Grid
 
+CHUNK_BYTES = 16 * 2**20  # frames gathered at once, beside the batch's own
 SEEN_MEMO = 65_536  # (agent pose, see-through pattern) -> cells seen, kept before starting over
 
 
@@ -67,13 +68,19 @@ class TileFrames:
         return hit
 
     def frames(self, cells: np.ndarray) -> np.ndarray:
-        """uint8 (B, H * tile, W * tile, 3) of the tiles `cells` int (B, H, W) name."""
+        """uint8 (B, H * tile, W * tile, 3) of the tiles `cells` int (B, H, W) name, gathered
+        CHUNK_BYTES of frames at a time: the batch's frames and one chunk are all the memory
+        it takes."""
         if len(self._stack) < len(self._tiles):
             self._stack = np.stack(self._tiles)  # (K, tile, tile, 3)
         b, h, w = cells.shape
         t = self.tile
-        out = self._stack[cells]  # (B, H, W, tile, tile, 3)
-        return np.ascontiguousarray(out.transpose(0, 1, 3, 2, 4, 5)).reshape(b, h * t, w * t, 3)
+        out = np.empty((b, h, t, w, t, 3), np.uint8)
+        step = max(1, CHUNK_BYTES // out[0].nbytes)
+        for i in range(0, b, step):
+            gathered = self._stack[cells[i : i + step]]  # (b', H, W, tile, tile, 3)
+            out[i : i + step] = gathered.transpose(0, 1, 3, 2, 4, 5)
+        return out.reshape(b, h * t, w * t, 3)
 
 
 def _highlight(env) -> np.ndarray:

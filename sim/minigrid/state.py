@@ -16,6 +16,8 @@ still sees them, and MiniGrid's own `step` and renderer do the rest.
 
 from __future__ import annotations
 
+import contextlib
+import sys
 import threading
 from collections import OrderedDict
 from collections.abc import Callable
@@ -53,6 +55,60 @@ def door_state(obj: WorldObj) -> int:
     return 0 if obj.is_open else (2 if obj.is_locked else 1)
 
 
+def reset(env, seed: int) -> None:
+    """env.reset(seed=seed), whatever it prints going to stderr: BabyAI levels print their
+    rejected draws, and stdout is where `dfa run --json` writes its answer."""
+    with contextlib.redirect_stdout(sys.stderr):
+        env.reset(seed=int(seed))
+
+
+def free_cells(env) -> list[tuple[int, int]]:
+    """The empty floor cells the agent can get to, in row-major order: those joined to its
+    cell by cells that hold anything but a wall (doors and objects can be opened or moved), off
+    the grid's border (MultiRoom leaves empty cells outside its rooms)."""
+    start = tuple(int(v) for v in env.agent_pos)
+    seen, todo = {start}, [start]
+    while todo:
+        i, j = todo.pop()
+        for nxt in ((i + 1, j), (i - 1, j), (i, j + 1), (i, j - 1)):
+            if nxt in seen or not (0 < nxt[0] < env.width - 1 and 0 < nxt[1] < env.height - 1):
+                continue
+            cell = env.grid.get(*nxt)
+            if cell is None or cell.type != "wall":
+                seen.add(nxt)
+                todo.append(nxt)
+    return sorted(
+        ((i, j) for i, j in seen if env.grid.get(i, j) is None and (i, j) != start),
+        key=lambda c: (c[1], c[0]),
+    )
+
+
+def _follow(env) -> None:
+    """A BabyAI instruction's verifier set to the restored scene: where its objects are now,
+    and what the agent carried before the step to come (what a Pickup or PutNext compares
+    against); everything else it holds was fixed when the layout was made."""
+    instrs = getattr(env, "instrs", None)
+    if instrs is None:
+        return
+    env.update_objs_poss()
+    if hasattr(instrs, "preCarrying"):
+        instrs.preCarrying = env.carrying
+
+
+def sequenced(env, seeds) -> bool:
+    """True when env's instruction (BabyAI) is a sequence (before, after, and) on any layout
+    of `seeds`: it keeps which part is done, which no scene holds."""
+    from minigrid.envs.babyai.core.verifier import SeqInstr
+
+    for seed in seeds:
+        reset(env, seed)
+        if isinstance(getattr(env, "instrs", None), SeqInstr):
+            return True
+        if getattr(env, "instrs", None) is None:
+            return False  # not a BabyAI level: nothing to look at on other layouts
+    return False
+
+
 class Layouts:
     """One environment per layout seed, with its objects as the slots of the concept space."""
 
@@ -69,7 +125,7 @@ class Layouts:
                 self._envs.move_to_end(layout)
                 return self._envs[layout]
             env = self.make_env()
-            env.reset(seed=int(layout))
+            reset(env, layout)
             objs: dict[str, WorldObj] = {}
             seen: dict[str, int] = {}
             for j in range(env.height):  # row-major: the slots' order on every layout
@@ -95,13 +151,7 @@ class Layouts:
 
     @staticmethod
     def _free_cells(env) -> list[tuple[int, int]]:
-        agent = tuple(int(v) for v in env.agent_pos)
-        return [
-            (i, j)
-            for j in range(1, env.height - 1)
-            for i in range(1, env.width - 1)
-            if env.grid.get(i, j) is None and (i, j) != agent
-        ]
+        return free_cells(env)
 
     def restore(self, scene: Scene):
         """The environment of the scene's layout, set to the scene (holding the lock is the
@@ -133,6 +183,7 @@ class Layouts:
             int(direction),
             int(step),
         )
+        _follow(env)
         return env, objs
 
     @property

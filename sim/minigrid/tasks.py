@@ -1,12 +1,14 @@
-"""Tasks of a MiniGrid world, made from its concept space.
+"""Tasks of a MiniGrid world, made from its concept space and its missions.
 
 Training tasks are the environment's own layouts (reset seeds 0, 1, ...), as whoever trained a
 policy on it saw them. Test tasks start from other layouts (seeds from 1,000,000 on) and change
-the scene the way a shift kind says: object_ti recolours one or two objects, distractor_ti adds
-the extra ball on a free cell off the expert's path, other moves the agent's start (positions
-are outside the concept space). R' is the environment's own reward, which looks at no colour
-and no distractor: those concepts are left open (task-irrelevant). Every task is one the
-expert solves within the horizon; a draw it cannot solve is drawn again.
+the scene the way a shift kind says: object_ti recolours one or two objects the mission does
+not name, distractor_ti adds the extra ball on a free cell off the expert's path, other moves
+the agent's start (positions are outside the concept space). R' is the environment's own
+reward for the layout's mission: what the mission names (sim.minigrid.mission) is
+task-relevant, the colours of the other objects and the added ball are left open, in any
+colour but the ones the mission names for their type. Every task is one the expert solves
+within the horizon; a draw it cannot solve is drawn again.
 """
 
 from __future__ import annotations
@@ -30,21 +32,63 @@ from sim.core import (
     check_shift,
     draw_from_reward,
 )
-from sim.minigrid.concepts import COLOUR, COLOURED
+from sim.minigrid.concepts import COLOURED
+from sim.minigrid.mission import Mission
+from sim.minigrid.state import free_cells as open_cells
 
 TEST_LAYOUTS = 1_000_000  # test tasks and fresh tasks start from layouts at or after this seed
 MAX_TRIES = 200
+SUCCESS = "env_reward"
 
 
-def mission(world, layout: int) -> str:
+def mission(world, layout: int) -> Mission:
+    """The mission of layout `layout`, and what it names."""
     env, _, _ = world.layouts.get(int(layout))
-    return str(env.mission)
+    return Mission.of(env.mission)
+
+
+def layout_reward(world, scene: Scene, shift: str, open_: tuple[tuple[str, str], ...]) -> Reward:
+    """R' on the layout of `scene`: what its mission names is relevant; the (slot, concept)
+    pairs of `open_` are left open (a colour: any but those the mission names for the slot's
+    type; a presence: present or absent), and the instruction says so after the mission."""
+    m = mission(world, int(scene.agent[0]))
+    allowed = []
+    for slot, concept in open_:
+        kind = world.space.slot(slot).kind
+        values = (PRESENT, ABSENT) if concept == PRESENCE else m.colours_for(kind)
+        allowed.append((slot, concept, values))
+    return Reward(
+        f"{m.text}{_said(world, m, shift, open_)}",
+        m.relevant(world.space, scene),
+        tuple(allowed),
+        success=SUCCESS,
+    )
+
+
+def _said(world, m: Mission, shift: str, open_) -> str:
+    """What the instruction adds to the mission for a shift's open concepts."""
+    if shift == "object_ti":
+        parts = []
+        for kind in sorted({world.space.slot(s).kind for s, _ in open_}):
+            banned = m.banned(kind)
+            parts.append(
+                f"other {kind}s in any colour but {' or '.join(banned)}"
+                if banned
+                else f"whatever the {kind}'s colour"
+            )
+        return f" ({'; '.join(parts)})"
+    if shift == "distractor_ti":
+        banned = m.banned(world.space.slot(world.distractor).kind)
+        but = f", but no other {' or '.join(banned)} ball" if banned else ""
+        return f" (whatever else is on the floor{but})"
+    if shift == "other":
+        return " (from wherever it starts)"
+    return ""
 
 
 def train_task(world, seed: int = 0) -> Task:
     scene = world.layout_scene(seed)
-    reward = Reward(mission(world, seed), frozenset(), success="env_reward")
-    return Task(world.name, scene, reward, "train", seed)
+    return Task(world.name, scene, layout_reward(world, scene, "train", ()), "train", seed)
 
 
 def path_cells(world, scene: Scene) -> set[tuple[int, int]]:
@@ -65,22 +109,20 @@ def _agent_and_front(scene: Scene) -> set[tuple[int, int]]:
 
 
 def free_cells(world, scene: Scene) -> list[tuple[int, int]]:
-    """Empty floor cells of the scene (no wall, no object, not the agent's)."""
-    env, _, _ = world.layouts.get(int(scene.agent[0]))
+    """Empty floor cells of the scene the agent can get to (no wall, no object, not the
+    agent's; sim.minigrid.state.free_cells)."""
     with world.layouts.lock:
         env, _ = world.layouts.restore(scene)
-        agent = (int(scene.agent[1]), int(scene.agent[2]))
-        return [
-            (i, j)
-            for j in range(1, env.height - 1)
-            for i in range(1, env.width - 1)
-            if env.grid.get(i, j) is None and (i, j) != agent
-        ]
+        return open_cells(env)
 
 
 def _solvable(world, scene: Scene) -> bool:
-    """Solvable by a plan that drops nothing (what the expert's demonstration then follows)."""
-    return world.planner.plan(scene, thorough=False) is not None
+    """Solvable by the expert: first by a plan that drops nothing (a quick answer), else by
+    any (PutNext missions need a drop)."""
+    return (
+        world.planner.plan(scene, thorough=False) is not None
+        or world.planner.plan(scene) is not None
+    )
 
 
 def _with_distractor(world, scene: Scene, rng, slot: str, colour: str) -> Scene | None:
@@ -97,58 +139,72 @@ def _with_distractor(world, scene: Scene, rng, slot: str, colour: str) -> Scene 
     return scene.with_obj(added)
 
 
+def recolourable(world, scene: Scene) -> list:
+    """The present objects of `scene` whose colour its mission leaves open."""
+    relevant = mission(world, int(scene.agent[0])).relevant(world.space, scene)
+    return [
+        o
+        for o in scene.objects
+        if o.present
+        and world.space.slot(o.slot).kind in COLOURED
+        and (o.slot, "colour") not in relevant
+    ]
+
+
+def addable(world, scene: Scene) -> bool:
+    """True when the mission of `scene` leaves the extra ball's presence open."""
+    relevant = mission(world, int(scene.agent[0])).relevant(world.space, scene)
+    return (world.distractor, PRESENCE) not in relevant
+
+
 def test_task(world, shift: str, seed: int) -> Task:
     """A shifted task of kind `shift` (world.shifts), from np.random.default_rng([seed, 2])."""
     check_shift(shift)
     if shift not in world.shifts:
-        raise UserError(f"{world.name} makes no {shift} tasks; accepted: {', '.join(world.shifts)}")
+        why = world.lacks.get(shift)
+        raise UserError(
+            f"{world.name} makes no {shift} tasks{f' ({why})' if why else ''}; accepted: "
+            f"{', '.join(world.shifts)}"
+        )
     rng = np.random.default_rng([seed, 2])
     for _ in range(MAX_TRIES):
         layout = TEST_LAYOUTS + int(rng.integers(TEST_LAYOUTS))
         base = world.layout_scene(layout)
-        text = mission(world, layout)
-        made = _shifted(world, base, shift, rng, text)
+        made = _shifted(world, base, shift, rng)
         if made is not None and _solvable(world, made[0]):
             scene, reward, cause = made
             return Task(world.name, scene, reward, shift, seed, cause)
     raise UserError(f"{world.name}: no solvable {shift} task in {MAX_TRIES} draws for seed {seed}")
 
 
-def _shifted(world, base: Scene, shift: str, rng, text: str):
+def _shifted(world, base: Scene, shift: str, rng):
     if shift == "object_ti":
-        coloured = [
-            o for o in base.objects if o.present and world.space.slot(o.slot).kind in COLOURED
-        ]
+        coloured = recolourable(world, base)
         if not coloured:
             return None
         # one object, or two in one new colour (a key and its door only work together)
         k = min(len(coloured), 1 + int(rng.integers(2)))
         picked = [coloured[i] for i in rng.permutation(len(coloured))[:k]]
+        open_ = tuple((o.slot, "colour") for o in picked)
+        reward = layout_reward(world, base, shift, open_)
         olds = {o.value("colour") for o in picked}
-        others = [c for c in COLOUR.values if c not in olds]
+        fits = set.intersection(*(set(v) for _, _, v in reward.allowed))
+        others = [c for c in reward.allowed[0][2] if c in fits and c not in olds]
+        if not others:
+            return None
         new = str(others[int(rng.integers(len(others)))])
         changes = [Change(o.slot, "colour", o.value("colour"), new) for o in picked]
         scene = world.apply(base, Edit.of(*changes))
-        kinds = " and ".join(sorted({world.space.slot(c.slot).kind for c in changes}))
-        reward = Reward(
-            f"{text} (whatever the {kinds}'s colour)",
-            frozenset(),
-            tuple((c.slot, "colour", COLOUR.values) for c in changes),
-            success="env_reward",
-        )
         return scene, reward, (changes[0].slot, "colour")
     if shift == "distractor_ti":
         slot = world.distractor
-        colour = str(COLOUR.values[int(rng.integers(len(COLOUR.values)))])
-        scene = _with_distractor(world, base, rng, slot, colour)
+        if not addable(world, base):
+            return None
+        reward = layout_reward(world, base, shift, ((slot, PRESENCE), (slot, "colour")))
+        colours = reward.allowed_values(slot, "colour")
+        scene = _with_distractor(world, base, rng, slot, str(colours[rng.integers(len(colours))]))
         if scene is None:
             return None
-        reward = Reward(
-            f"{text} (whatever else is on the floor)",
-            frozenset(),
-            ((slot, PRESENCE, (PRESENT, ABSENT)), (slot, "colour", COLOUR.values)),
-            success="env_reward",
-        )
         return scene, reward, (slot, PRESENCE)
     # other: the agent starts on another cell, facing another way
     cells = free_cells(world, base)
@@ -159,46 +215,36 @@ def _shifted(world, base: Scene, shift: str, rng, text: str):
     scene = Scene(
         base.world, base.objects, (a[0], float(col), float(row), float(rng.integers(4)), *a[4:])
     )
-    return (
-        scene,
-        Reward(f"{text} (from wherever it starts)", frozenset(), success="env_reward"),
-        None,
-    )
+    return scene, layout_reward(world, base, shift, ()), None
 
 
 def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) -> list[Task]:
-    """n tasks on fresh layouts with R' drawn as the task's (keeping the shift, when
-    `shifted`: only layouts that have the recoloured object): the recoloured objects'
-    colours, the distractor (placed off the expert's path), the agent's start for `other`.
-    Drawn from np.random.default_rng([seed, 3])."""
+    """n tasks on fresh layouts, each with R' made as the task's on its own layout's mission
+    (the same concepts open), drawn from it (keeping the shift, when `shifted`: only layouts
+    where the recoloured object is there and its mission leaves it open): the open colours,
+    the distractor (placed off the expert's path), the agent's start for `other`. Drawn from
+    np.random.default_rng([seed, 3])."""
     rng = np.random.default_rng([seed, 3])
-    reward = carrying_shift(world.space, task) if shifted else task.reward
+    open_ = tuple((s, c) for s, c, _ in task.reward.allowed)
     out: list[Task] = []
     for _ in range(MAX_TRIES * n):
         if len(out) == n:
             break
         layout = TEST_LAYOUTS + int(rng.integers(TEST_LAYOUTS))
         base = world.layout_scene(layout)
-        recoloured = shifted and task.cause is not None and task.cause[1] != PRESENCE
-        if recoloured and not base.obj(task.cause[0]).present:
-            continue  # a layout without the recoloured object cannot carry its shift
-        scene = base
-        for slot, concept, values in reward.allowed:  # the looks: onto this layout's objects
-            v = str(values[int(rng.integers(len(values)))])
-            o = scene.obj(slot)
-            if concept == PRESENCE:
-                if v == PRESENT and not o.present:
-                    placed = _with_distractor(
-                        world, scene, rng, slot, o.values[0][1] if o.values else ""
-                    )
-                    if placed is None:
-                        scene = None
-                        break
-                    scene = placed
-                elif v == ABSENT:
-                    scene = scene.with_obj(dataclasses.replace(o, present=False))
-            elif o.present or slot == world.distractor:
-                scene = scene.with_obj(o.with_value(concept, v))
+        here = layout_reward(world, base, task.shift, open_)
+        if any(here.is_relevant(s, c) for s, c in open_):
+            continue  # this layout's mission names what the task leaves open
+        reward = here
+        if shifted and task.cause is not None:
+            slot, concept = task.cause
+            if concept != PRESENCE and not base.obj(slot).present:
+                continue  # a layout without the recoloured object cannot carry its shift
+            reward = carrying_shift(world.space, dataclasses.replace(task, reward=here))
+            value = task.scene.obj(slot).value("colour")
+            if value not in (here.allowed_values(slot, "colour") or (value,)):
+                continue  # the shift's colour is one this layout's mission names
+        scene = _drawn(world, base, reward, rng)
         if scene is None:
             continue
         if task.shift == "other":
@@ -212,11 +258,32 @@ def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) 
             )
         if _solvable(world, scene):
             out.append(
-                Task(world.name, scene, task.reward, task.shift, seed * 1000 + len(out), task.cause)
+                Task(world.name, scene, here, task.shift, seed * 1000 + len(out), task.cause)
             )
     if len(out) < n:
         raise UserError(f"{world.name}: only {len(out)} of {n} fresh tasks were solvable")
     return out
+
+
+def _drawn(world, scene: Scene, reward: Reward, rng) -> Scene | None:
+    """`scene` with each concept R' leaves open drawn from its allowed values (an added
+    distractor placed off the expert's path); None where it has no room."""
+    for slot, concept, values in reward.allowed:  # the looks: onto this layout's objects
+        v = str(values[int(rng.integers(len(values)))])
+        o = scene.obj(slot)
+        if concept == PRESENCE:
+            if v == PRESENT and not o.present:
+                placed = _with_distractor(
+                    world, scene, rng, slot, o.values[0][1] if o.values else ""
+                )
+                if placed is None:
+                    return None
+                scene = placed
+            elif v == ABSENT:
+                scene = scene.with_obj(dataclasses.replace(o, present=False))
+        elif o.present or slot == world.distractor:
+            scene = scene.with_obj(o.with_value(concept, v))
+    return scene
 
 
 def placements(world, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:

@@ -9,10 +9,13 @@ Concepts  every object of the environment's grids is a slot of its type's kind (
           ball0, box0, goal0, lava0, ...): colour over MiniGrid's six (not lava), presence;
           one extra ball, absent, for distractors (sim.minigrid.concepts)
 Actions   MiniGrid's own: 0 left, 1 right, 2 forward, 3 pickup, 4 drop, 5 toggle, 6 done
-Shifts    object_ti (one or two objects recoloured), distractor_ti (the extra ball added off
-          the expert's path), other (the agent starts elsewhere); every one solvable by the
-          expert (sim.minigrid.tasks)
-Success   the environment's own reward is positive by the end of the episode
+Shifts    object_ti (one or two objects the mission does not name recoloured), distractor_ti
+          (the extra ball added off the expert's path), other (the agent starts elsewhere);
+          every one solvable by the expert (sim.minigrid.tasks). A shift none of the first
+          layouts can make (every object's colour named, a mission that takes any ball) is not
+          offered, and `lacks` says why
+Success   the environment's own reward is positive by the end of the episode; R' holds what
+          the mission names relevant (sim.minigrid.mission)
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from sim.minigrid import concepts as C
 from sim.minigrid import tasks as TK
 from sim.minigrid.expert import Planner
 from sim.minigrid.frames import TileFrames
-from sim.minigrid.state import Layouts
+from sim.minigrid.state import Layouts, sequenced
 
 SHIFTS = ("object_ti", "distractor_ti", "other")
 ACTION_KEYS = (
@@ -40,6 +43,14 @@ ACTION_KEYS = (
     Key("toggle", "T", 5),
     Key("done", "Enter", 6),
 )
+
+
+PREFIXES = ("MiniGrid-", "BabyAI-")  # the ids minigrid registers
+MAX_FRAME_PX = 256 * 256
+"""The most pixels a frame may have: a search step holds a frame per live candidate (hundreds)
+and a rollout one per step, so a frame's size is paid for many times over."""
+LARGE_FRAME_BYTES = 64 * 1024  # frames from this size on get a line on what they cost
+SEARCH_BATCH = 512  # candidates a search step typically renders at once (the cost line's)
 
 
 def parse(name: str) -> tuple[str, int, str]:
@@ -57,16 +68,52 @@ def parse(name: str) -> tuple[str, int, str]:
                 f"minigrid:{name}: unknown option {opt!r}; accepted: tile=N (1..64), "
                 "view=full or view=partial"
             )
-    if not env_id.startswith("MiniGrid-") or env_id not in gymnasium.registry:
+    if not env_id.startswith(PREFIXES) or env_id not in gymnasium.registry:
         import minigrid  # noqa: F401 (registers the MiniGrid ids)
 
-        known = sorted(k for k in gymnasium.registry if k.startswith("MiniGrid-"))
+        known = sorted(k for k in gymnasium.registry if k.startswith(PREFIXES))
         if env_id not in known:
             raise UserError(
-                f"minigrid:{env_id}: not a registered MiniGrid environment; accepted: "
+                f"minigrid:{env_id}: not a registered MiniGrid or BabyAI environment; accepted: "
                 f"{', '.join(known[:8])}, ... ({len(known)} ids)"
             )
     return env_id, tile, view
+
+
+def frame_shape(env, tile: int, view: str) -> tuple[int, int, int]:
+    """(H, W, 3) of env's frames at `tile` px per cell: the whole grid, or the agent's view."""
+    if view == "partial":
+        return (env.agent_view_size * tile, env.agent_view_size * tile, 3)
+    return (env.height * tile, env.width * tile, 3)
+
+
+def check_frames(name: str, shape: tuple[int, int, int], tile: int) -> None:
+    """A UserError naming the largest tile that fits when frames of `shape` are over
+    MAX_FRAME_PX pixels."""
+    h, w, _ = shape
+    if h * w <= MAX_FRAME_PX:
+        return
+    cells = (h // tile) * (w // tile)
+    fits = max(1, int((MAX_FRAME_PX / cells) ** 0.5))
+    raise UserError(
+        f"{name}: frames of {h}x{w} pixels ({h * w * 3 / 2**20:.1f} MiB each, "
+        f"{h * w * 3 * SEARCH_BATCH / 2**30:.1f} GiB for a search step of {SEARCH_BATCH} "
+        f"candidates) are over the limit of {MAX_FRAME_PX:,} pixels; give tile={fits} or less"
+    )
+
+
+def cost_line(shape: tuple[int, int, int], horizon: int) -> str | None:
+    """What frames of `shape` cost in memory, in one line, when they are large (else None)."""
+    size = int(np.prod(shape))
+    if size < LARGE_FRAME_BYTES:
+        return None
+    mib = lambda n: f"{n / 2**20:,.1f} MiB"  # noqa: E731
+    return (
+        f"frames are {shape[0]}x{shape[1]} pixels: {size / 1024:,.0f} KiB each, "
+        f"{mib(size * SEARCH_BATCH)} for a search step of {SEARCH_BATCH} candidates, "
+        f"{mib(size * (horizon + 1))} for one rollout of {horizon} steps (a smaller tile=N "
+        "costs less)"
+    )
 
 
 def minigrid_world(rest: str) -> MiniGridWorld:
@@ -95,18 +142,38 @@ class MiniGridWorld(Benchmark):
         )
         self.name = f"minigrid:{env_id}{suffix}"
         probe = self._make()
+        self.obs_shape = frame_shape(probe, tile, view)
+        check_frames(self.name, self.obs_shape, tile)  # before any frame is drawn
         counts = C.count_objects(probe, range(C.SAMPLE_LAYOUTS))
+        if sequenced(probe, range(C.SAMPLE_LAYOUTS)):
+            raise UserError(
+                f"{self.name}: its instructions are sequences (before, after, and) whose "
+                "progress the environment keeps out of sight of a scene; give a BabyAI level "
+                "of one instruction (GoTo, Open, Pickup, PutNext)"
+            )
         self.space, self.distractor = C.space_for(counts)
         self.horizon = int(probe.max_steps)
         self.action_dim = int(probe.action_space.n)
-        probe.reset(seed=0)
-        frame = probe.get_frame(
-            highlight=probe.highlight, tile_size=tile, agent_pov=view == "partial"
-        )
-        self.obs_shape = tuple(int(v) for v in frame.shape)
+        self.cost = cost_line(self.obs_shape, self.horizon)
         self.layouts = Layouts(self._make, self.space, self.name)
         self.tiles = TileFrames(tile)
         self.planner = Planner(self)
+        self.shifts, self.lacks = self._offered()
+
+    def _offered(self) -> tuple[tuple[str, ...], dict[str, str]]:
+        """The shifts the first layouts can make, and why any other is not offered."""
+        scenes = [self.layout_scene(s) for s in range(C.SAMPLE_LAYOUTS)]
+        missions = {TK.mission(self, s).names for s in range(C.SAMPLE_LAYOUTS)}
+        kinds = {k for names in missions for n in names for k in n.kinds()}
+        self.mission_kinds = tuple(sorted(kinds)) if len(missions) > 1 else ()
+        lacks = {}
+        if not any(TK.recolourable(self, s) for s in scenes):
+            lacks["object_ti"] = (
+                "no TI object shift: the mission names the colour of every object that has one"
+            )
+        if not any(TK.addable(self, s) for s in scenes):
+            lacks["distractor_ti"] = "no TI distractor: the mission takes any ball"
+        return tuple(s for s in SHIFTS if s not in lacks), lacks
 
     def _make(self):
         return gymnasium.make(self.env_id).unwrapped
@@ -170,6 +237,22 @@ class MiniGridWorld(Benchmark):
         self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
     ) -> list[Task]:
         return TK.fresh_tasks(self, task, n, seed, shifted=shifted)
+
+    def task_for(self, scene: Scene) -> Task:
+        """A task for a scene a user brings: R' is its layout's mission (sim.minigrid.mission)."""
+        return Task(self.name, scene, TK.layout_reward(self, scene, "user", ()), "user", 0)
+
+    def notes(self, task: Task) -> tuple[str, ...]:
+        """A line on what large frames cost, and one when the task's mission names a target the
+        frames alone do not single out."""
+        m = TK.mission(self, int(task.scene.agent[0]))
+        lines = [self.cost] if self.cost else []
+        if m.hidden(self.space, task.scene, self.mission_kinds):
+            lines.append(
+                f'the mission "{m.text}" names the target, which the frames alone do not '
+                "single out: a policy that sees only frames has to guess it"
+            )
+        return tuple(lines)
 
     def expert_action(self, task: Task, scene: Scene) -> np.ndarray:
         plan = self.planner.plan(scene)

@@ -5,6 +5,8 @@ from that space, and the breadth-first expert solves every task it is given."""
 from __future__ import annotations
 
 import itertools
+import subprocess
+import sys
 
 import gymnasium
 import numpy as np
@@ -131,6 +133,8 @@ def test_the_expert_solves_training_and_shifted_tasks(world):
 
 def test_shifts_change_what_their_kind_says(world):
     for seed in range(3):
+        if "object_ti" not in world.shifts:
+            break
         obj = world.test_task("object_ti", seed)
         base = world.layout_scene(int(obj.scene.agent[0]))
         changed = [
@@ -140,6 +144,8 @@ def test_shifts_change_what_their_kind_says(world):
         ]
         assert 1 <= len(changed) <= 2 and obj.cause[0] in {c[0] for c in changed}
         assert obj.scene.agent == base.agent
+        assert not any(obj.reward.is_relevant(c[0], "colour") for c in changed)
+    for seed in range(3):
         dist = world.test_task("distractor_ti", seed)
         assert dist.cause == (world.distractor, PRESENCE)
         assert dist.scene.obj(world.distractor).present
@@ -151,18 +157,100 @@ def test_shifts_change_what_their_kind_says(world):
 
 
 def test_fresh_tasks_carry_the_shift(world):
-    task = world.test_task("object_ti", 0)
+    task = world.test_task("object_ti" if "object_ti" in world.shifts else "distractor_ti", 0)
     slot = task.cause[0]
     value = task.scene.obj(slot).value("colour")
     for fresh in world.fresh_tasks(task, 5, seed=0, shifted=True):
         assert fresh.scene.obj(slot).value("colour") == value
+        assert fresh.scene.obj(slot).present
+
+
+def test_the_experts_plans_earn_the_stock_environments_reward(world):
+    """The expert's actions, found by stepping restored scenes (a BabyAI level's instruction
+    follows each restored scene), replayed in the stock environment reach its reward."""
+    env = world.make_env()
+    for seed in range(2):
+        demo = world.demonstrate(world.train_task(seed))
+        assert demo.success
+        env.reset(seed=seed)
+        rewards = []
+        for a in demo.actions:
+            _, reward, terminated, truncated, _ = env.step(int(a))
+            rewards.append(reward)
+            if terminated or truncated:
+                break
+        assert max(rewards) > 0
+
+
+def test_babyai_levels_of_one_instruction_are_worlds():
+    """Their missions read like MiniGrid's; the expert's plans, found by stepping restored
+    scenes (the instruction's verifier follows each one: where its objects are, what was
+    carried before the step), earn the stock level's reward, a PutNext's drop included."""
+    for env_id in ("BabyAI-GoToRedBallNoDists-v0", "BabyAI-OpenRedDoor-v0"):
+        w = sim.get_world(f"minigrid:{env_id}")
+        task = w.test_task(w.shifts[0], 0)
+        assert w.demonstrate(task).success
+    put = sim.get_world("minigrid:BabyAI-PutNextS4N1-v0")
+    assert put.train_task(0).reward.is_relevant("key0", "colour")
+    test_the_experts_plans_earn_the_stock_environments_reward(put)
+    with pytest.raises(UserError, match="sequences") as err:
+        sim.get_world("minigrid:BabyAI-GoToSeqS5R2-v0")
+    assert "\n" not in str(err.value)
+
+
+def test_empty_cells_outside_the_rooms_are_not_free():
+    """MultiRoom leaves empty cells outside its rooms: no shift puts the agent or a ball
+    there (the agent would walk off the grid)."""
+    w = sim.get_world("minigrid:MiniGrid-MultiRoom-N2-S4-v0")
+    for seed in range(3):
+        other = w.test_task("other", seed)
+        assert w.demonstrate(other).success
+        dist = w.test_task("distractor_ti", seed)
+        assert w.demonstrate(dist).success
+
+
+def test_large_frames_are_refused_before_they_are_drawn():
+    with pytest.raises(UserError, match="give tile=10 or less") as err:
+        sim.get_world("minigrid:MiniGrid-MultiRoom-N6-v0:tile=64")
+    assert "\n" not in str(err.value) and "1600x1600" in str(err.value)
+    w = sim.get_world("minigrid:MiniGrid-MultiRoom-N6-v0:tile=10")  # the tile it names fits
+    assert w.obs_shape == (250, 250, 3)
+
+
+def test_what_large_frames_cost_is_said_once():
+    w = sim.get_world("minigrid:MiniGrid-MultiRoom-N2-S4-v0")
+    lines = [line for line in w.notes(w.train_task(0)) if "KiB each" in line]
+    assert len(lines) == 1 and "200x200" in lines[0] and "search step" in lines[0]
+    small = sim.get_world("minigrid:MiniGrid-DoorKey-5x5-v0")
+    assert not any("KiB each" in line for line in small.notes(small.train_task(0)))
+
+
+def test_a_batch_of_frames_takes_its_own_memory_and_one_chunk():
+    """581 frames of 250x250 (MultiRoom-N6 at tile 10) rendered at once in a fresh process:
+    the peak grows by the batch and a chunk, not twice the batch."""
+    code = """
+import resource, sim
+w = sim.get_world("minigrid:MiniGrid-MultiRoom-N6-v0:tile=10")
+scenes = ([w.layout_scene(s) for s in range(5)] * 200)[:581]
+w.render_batch(scenes[:2])
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+frames = w.render_batch(scenes)
+after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(frames.nbytes, after - before)
+"""
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=600
+    )
+    nbytes, grown = (int(v) for v in out.stdout.split())
+    assert nbytes == 581 * 250 * 250 * 3
+    assert grown < 1.5 * nbytes, (grown, nbytes)
 
 
 @pytest.mark.parametrize(
     ("name", "message"),
     [
-        ("minigrid:MiniGrid-Nope-v0", "not a registered MiniGrid environment"),
-        ("minigrid:CartPole-v1", "not a registered MiniGrid environment"),
+        ("minigrid:MiniGrid-Nope-v0", "not a registered MiniGrid or BabyAI environment"),
+        ("minigrid:CartPole-v1", "not a registered MiniGrid or BabyAI environment"),
         ("minigrid:MiniGrid-DoorKey-5x5-v0:tile=0", "unknown option 'tile=0'"),
         ("minigrid:MiniGrid-DoorKey-5x5-v0:view=top", "unknown option 'view=top'"),
     ],
