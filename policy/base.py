@@ -35,9 +35,9 @@ import torch
 from policy.checkpoint import load_policy, read_config, save_policy
 from policy.model import Policy, PolicyConfig
 from policy.train import (
-    BASE,
     LossCallback,
     TrainConfig,
+    base_config,
     behaviour_clone,
     training_demos,
     training_tasks,
@@ -109,9 +109,12 @@ def recipe_change(then: dict, now: dict) -> str | None:
     return None
 
 
-def base_folder(world: World, *, seed: int = RECORD_SEED, config: TrainConfig = BASE) -> Path:
+def base_folder(
+    world: World, *, seed: int = RECORD_SEED, config: TrainConfig | None = None
+) -> Path:
     """Where a world's base policy is kept: policy/weights/<world>/ for the policies of record
     (seed 0, the default recipe), else a cache folder named by the recipe."""
+    config = config or base_config(world)
     if of_record(world, seed, config):
         return WEIGHTS / world.name
     now = recipe(world, training_demos(world, seed), seed=seed, config=config)
@@ -122,20 +125,24 @@ def of_record(world: World, seed: int, config: TrainConfig) -> bool:
     """True for the policies of record: seed 0 and the default recipe of a world whose weights
     are committed (other worlds, e.g. any MiniGrid environment, are cached outside the
     repository)."""
-    return seed == RECORD_SEED and config == BASE and (WEIGHTS / world.name).is_dir()
+    return (
+        seed == RECORD_SEED and config == base_config(world) and (WEIGHTS / world.name).is_dir()
+    )
 
 
 def base_policy(
     world: World,
     *,
     seed: int = RECORD_SEED,
-    config: TrainConfig = BASE,
+    config: TrainConfig | None = None,
     retrain: bool = False,
     on_loss: LossCallback | None = None,
 ) -> Policy:
     """The base policy of `world`: the committed weights of record, checked against today's
     recipe; trained (and cached) where none are committed. `retrain` trains it again and
-    writes it where it is kept (policy/weights/<world>/ for the policies of record)."""
+    writes it where it is kept (policy/weights/<world>/ for the policies of record).
+    `config`: the cloning settings (default: the world's, policy.train.base_config)."""
+    config = config or base_config(world)
     demos = training_demos(world, seed)
     now = recipe(world, demos, seed=seed, config=config)
     record = of_record(world, seed, config)

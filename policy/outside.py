@@ -347,7 +347,8 @@ def load_sb3(path: Path, world, source: str) -> Policy:
     if shape not in ((c, h, w), (h, w, c)) or obs_space.get("dtype") != "uint8":
         raise UserError(
             f"{path}: the policy takes {str(obs_space.get('dtype'))[:20]} observations of shape "
-            f"{shape or str(raw_shape)[:40]}, but {world.name} renders uint8 {tuple(world.obs_shape)}"
+            f"{shape or str(raw_shape)[:40]}, but {world.name} renders uint8 "
+            f"{tuple(world.obs_shape)}"
         )
     n = int(act_space.get("n", -1)) if str(act_space.get("n", "")).isdigit() else -1
     if not world.discrete or n != world.action_dim:

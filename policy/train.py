@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -149,10 +149,19 @@ def finetune(
 
 
 def training_tasks(world: World, seed: int = 0) -> list[Task]:
-    """The training tasks a base policy is cloned on (N_TRAIN_DEMOS of them)."""
-    return [world.train_task(seed=seed * N_TRAIN_DEMOS + i) for i in range(N_TRAIN_DEMOS)]
+    """The training tasks a base policy is cloned on (world.cloning.demonstrations of them;
+    the paper's worlds: N_TRAIN_DEMOS)."""
+    n = world.cloning.demonstrations
+    return [world.train_task(seed=seed * n + i) for i in range(n)]
 
 
 def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
-    """The expert demonstrations of the training tasks a base policy is cloned on."""
-    return [world.demonstrate(t) for t in training_tasks(world, seed)]
+    """The expert demonstrations of the training tasks a base policy is cloned on (with the
+    world's action noise, each seeded by its task's seed)."""
+    noise = world.cloning.noise
+    return [world.demonstrate(t, noise=noise, seed=t.seed) for t in training_tasks(world, seed)]
+
+
+def base_config(world: World) -> TrainConfig:
+    """The settings a world's base policy is cloned with: BASE with the world's steps."""
+    return replace(BASE, steps=world.cloning.steps)

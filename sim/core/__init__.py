@@ -27,7 +27,7 @@ from sim.core.task import (
     draw_from_reward,
 )
 from sim.core.trajectory import Trajectory
-from sim.core.world import ActBatch, Benchmark, Key, World
+from sim.core.world import ActBatch, Benchmark, Cloning, Key, World
 
 __all__ = [
     "ABSENT",
@@ -40,6 +40,7 @@ __all__ = [
     "ActBatch",
     "Benchmark",
     "Change",
+    "Cloning",
     "Concept",
     "ConceptSpace",
     "Edit",

@@ -137,7 +137,7 @@ def test_a_changed_recipe_with_stale_weights_is_an_error(nav, tmp_path, monkeypa
     assert "dfa train --retrain --worlds nav2d" in message
     doc["meta"]["recipe"] = {
         **doc["meta"]["recipe"],
-        "train": B.recipe(nav, [], seed=0, config=B.BASE)["train"],
+        "train": B.recipe(nav, [], seed=0, config=B.base_config(nav))["train"],
     }
     doc["meta"]["recipe"]["frame_colours"][0] = [0.0, 0.0, 0.0]
     (tmp_path / "nav2d" / "config.json").write_text(json.dumps(doc))
