@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import replace
 from pathlib import Path
 
@@ -175,10 +176,33 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     finally:
         for bar in bars.values():
             bar.close()
-    path = args.out / files.safe_name(f"{world.name}-{args.shift}-seed{args.seed}.rrd")
+    path = args.out / recording_name(
+        world, args.shift, args.seed, policy, args.policy, args.weights
+    )
     record = replace(record, recording=str(path))
     layer = None
     if args.saliency is not None:
         layer = failed_saliency(world, policy, record, args.saliency)
     write_recording(path, world, record, saliency=layer)
     return record
+
+
+def recording_name(
+    world: World, shift: str, seed: int, policy, spec: str | None, weights: Path | None
+) -> str:
+    """<world>-<shift>-seed<seed>.rrd for the base policy; any other policy adds a short name
+    of the file it came from and 8 hex digits of its sha256 (with --weights, of both files'),
+    so that runs of different policies on the same task keep their own recordings."""
+    base = f"{world.name}-{shift}-seed{seed}"
+    if spec is None and weights is None:
+        return files.safe_name(f"{base}.rrd")
+    if policy.origin is not None:  # a policy from outside: the file its spec reads
+        name, digest = Path(policy.origin.file).stem, policy.origin.sha256
+    else:  # a checkpoint folder of the project's own
+        folder = Path(spec).resolve()
+        name, digest = folder.name, files.sha256(folder / "model.safetensors")
+    if weights is not None:
+        digest = hashlib.sha256(
+            f"{digest}{files.sha256(Path(weights) / 'model.safetensors')}".encode()
+        ).hexdigest()
+    return files.safe_name(f"{base}-{name[:24]}-{digest[:8]}.rrd")

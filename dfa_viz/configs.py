@@ -97,7 +97,8 @@ class RunArgs:
     demonstration, searches the smallest concept edit that makes the policy follow it, takes
     TI/TR feedback, finetunes on the demonstration and its variants over the TI concepts, and
     scores both policies on 10 fresh tasks that carry the shift (and 10 from all of what the
-    user wants). Everything is recorded to OUT/<world>-<shift>-seed<seed>.rrd.
+    user wants). Everything is recorded to OUT/<world>-<shift>-seed<seed>.rrd (another
+    policy than the base policy adds its file's name and sha256: -<name>-<8 hex digits>).
     """
 
     world: str = "nav2d"
