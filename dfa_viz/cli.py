@@ -1,6 +1,6 @@
 """The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
 
-    dfa run | train | worlds | bench | prior | demo | serve | sweep | experiment q2
+    dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
     dfa experiment explain
     dfa study new | study serve | study analyse
 
@@ -24,6 +24,7 @@ import tyro
 from dfa_viz.configs import (
     AnalyseStudyArgs,
     BenchArgs,
+    CheckWorldArgs,
     DemoArgs,
     ExplainArgs,
     NewStudyArgs,
@@ -51,6 +52,7 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[RunArgs, tyro.conf.subcommand("run")],
     Annotated[TrainArgs, tyro.conf.subcommand("train")],
     Annotated[WorldsArgs, tyro.conf.subcommand("worlds")],
+    Annotated[CheckWorldArgs, tyro.conf.subcommand("check-world")],
     Annotated[BenchArgs, tyro.conf.subcommand("bench")],
     Annotated[PriorArgs, tyro.conf.subcommand("prior")],
     Annotated[DemoArgs, tyro.conf.subcommand("demo")],
@@ -118,6 +120,19 @@ def describe(world) -> str:
         f"{' '.join(slots)}; frames {world.obs_shape[0]}x{world.obs_shape[1]}, {acts} actions, "
         f"{steps}; demonstrations by {demo}; {kind}"
     )
+
+
+def check_world(args: CheckWorldArgs) -> int:
+    from sim import get_world
+    from sim.contract import check_world as run_contract
+
+    world = get_world(args.name)
+    results = run_contract(world)
+    for r in results:
+        print(f"{'PASS' if r.passed else 'FAIL'}  {r.name}{'' if r.passed else f': {r.message}'}")
+    held = sum(r.passed for r in results)
+    print(f"{world.name}: {held} of {len(results)} parts of the world contract hold")
+    return 0 if held == len(results) else 1
 
 
 def bench(args: BenchArgs) -> None:
@@ -199,6 +214,7 @@ HANDLERS = {
     RunArgs: run,
     TrainArgs: train,
     WorldsArgs: worlds,
+    CheckWorldArgs: check_world,
     BenchArgs: bench,
     PriorArgs: prior,
     DemoArgs: demo,
@@ -243,14 +259,14 @@ def main(argv: list[str] | None = None) -> int:
             Command, args=args, prog="dfa", config=(tyro.conf.OmitSubcommandPrefixes,)
         )
         check_output(config)
-        HANDLERS[type(config)](config)
+        status = HANDLERS[type(config)](config)  # an int where the command says how it went
     except UserError as e:
         print(f"dfa: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("dfa: interrupted", file=sys.stderr)
         return 130
-    return 0
+    return status or 0
 
 
 if __name__ == "__main__":

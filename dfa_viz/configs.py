@@ -147,6 +147,23 @@ class WorldsArgs:
 
 
 @dataclass(frozen=True)
+class CheckWorldArgs:
+    """Run the world contract on one world and print a line per part: PASS, or FAIL and why.
+
+    The checks tests/sim/test_world_contract.py runs on every registered world (sim.contract):
+    gymnasium's check_env on the world's environment, rendering and stepping deterministic and
+    the same batched as one by one, encode/decode and edit round trips, the capabilities
+    declared, no success from a non-finite state, and for a world with test tasks its shifts,
+    expert and fresh tasks. Exits 0 when every part holds, 1 when one fails.
+    """
+
+    name: tyro.conf.Positional[Annotated[str, tyro.conf.arg(metavar="NAME")]]
+    """The world: a registered name (`dfa worlds`), module:Class (a World subclass or a
+    function returning one, imported from PYTHONPATH or the current folder), or
+    minigrid:ENV_ID."""
+
+
+@dataclass(frozen=True)
 class TrainArgs:
     """Load the committed base policy of each world, checked against today's training recipe,
     and report its success on the training tasks; --retrain trains it again and writes it where
