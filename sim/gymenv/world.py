@@ -108,9 +108,14 @@ def _env_success(reward: float, terminated: bool, info: dict) -> bool:
 
 
 class GymWorld(Benchmark):
-    """A gymnasium environment as a world; see the module docstring."""
+    """A gymnasium environment as a world; see the module docstring.
 
-    epsilon = 0.1
+    Optional keywords: observe (frames), succeeded (success), instruction (R' in words),
+    horizon (default: the id's max_episode_steps), epsilon (the search's per-step L1 bound for
+    continuous actions), keys (the page's buttons for discrete actions: demonstrations by
+    keyboard), make_kwargs (for gymnasium.make; render_mode "rgb_array" by default).
+    """
+
     lossless_frames = True
 
     def __init__(
@@ -126,6 +131,7 @@ class GymWorld(Benchmark):
         succeeded: Callable[[float, bool, dict], bool] = _env_success,
         instruction: str = "do what the environment rewards",
         horizon: int | None = None,
+        epsilon: float = 0.1,
         keys: tuple[Key, ...] = (),
         make_kwargs: dict | None = None,
     ) -> None:
@@ -155,7 +161,7 @@ class GymWorld(Benchmark):
         self.horizon = int(horizon or spec_steps or 0)
         if self.horizon < 1:
             raise UserError(f"{name}: {env_id} has no max_episode_steps; give horizon=")
-        self.keys = keys
+        self.keys, self.epsilon = keys, float(epsilon)
         self.demo_input = "keys" if keys and self.discrete else "file"
         self.shifts = tuple(
             s
