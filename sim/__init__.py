@@ -5,7 +5,7 @@ no torch, no MuJoCo, no minigrid until a world is built.
                                     a name another factory holds is an error, never replaced
     register_spec(spec)             add the world "module:Class" names, under its own name
     world_names()                   every registered name, the built-in worlds first
-    check_world_name(name)          a UserError for a name no registration makes
+    check_world_name(name)          the registered name `name` stands for, or a UserError
     get_world(name)                 the world of that name, built once per process
 
 Names come from the built-in worlds below; installed packages that declare an entry point in

@@ -4,7 +4,7 @@
                                     a name taken by another factory is a UserError
     register_spec(spec)             add the world "module:attribute" names, under its own name
     world_names()                   every registered name, the built-in worlds first
-    check_world_name(name)          a UserError for a name no registration makes
+    check_world_name(name)          the registered name `name` stands for, or a UserError
     get_world(name)                 the world of that name, built once per process
 
 A world comes from one of five places: the built-in worlds (sim/__init__.py); installed
@@ -198,14 +198,16 @@ def _unknown(name: str) -> UserError:
 
 
 def check_world_name(name: str) -> str:
-    """`name` if it names a registered world (or a prefix's), else a UserError. Builds nothing,
-    but a "module:Class" name is imported (and registered) to learn what world it names."""
+    """The registered name `name` stands for (itself, or the name of the world a
+    "module:Class" names), else a UserError. Builds nothing, but a "module:Class" name is
+    imported (and registered) to learn what world it names."""
     _read_outside()
-    if _registered(name) is None:
-        if not SPEC.match(name):
-            raise _unknown(name)
-        register_spec(name)
-    return name
+    registered = _registered(name)
+    if registered is not None:
+        return registered
+    if not SPEC.match(name):
+        raise _unknown(name)
+    return register_spec(name)
 
 
 def get_world(name: str):

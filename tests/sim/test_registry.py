@@ -51,7 +51,8 @@ def test_a_name_is_never_replaced(examples_on_path):
 def test_a_module_class_name_registers_its_world(examples_on_path):
     world = sim.get_world("corridor:CorridorWorld")
     assert world.name == "corridor" and sim.get_world("corridor") is world
-    assert sim.check_world_name("corridor:CorridorWorld") == "corridor:CorridorWorld"
+    assert sim.check_world_name("corridor:CorridorWorld") == "corridor"
+    assert sim.check_world_name("nav2d") == "nav2d"
     reacher = sim.get_world("grid_reacher:reacher")  # a function that returns a World
     assert reacher.name == "gridreacher" and "gridreacher" in sim.world_names()
 
