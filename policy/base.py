@@ -116,9 +116,15 @@ def base_folder(
     (seed 0, the default recipe), else a cache folder named by the recipe."""
     config = config or base_config(world)
     if of_record(world, seed, config):
-        return WEIGHTS / world.name
+        return record_folder(world)
     now = recipe(world, training_demos(world, seed), seed=seed, config=config)
     return _cached(now)
+
+
+def record_folder(world: World) -> Path:
+    """policy/weights/<world>/, the world's name made a file name ("fetch:FetchPush-v4" ->
+    "fetch_FetchPush-v4")."""
+    return WEIGHTS / files.safe_name(world.name)
 
 
 def of_record(world: World, seed: int, config: TrainConfig) -> bool:
@@ -126,7 +132,7 @@ def of_record(world: World, seed: int, config: TrainConfig) -> bool:
     are committed (other worlds, e.g. any MiniGrid environment, are cached outside the
     repository)."""
     return (
-        seed == RECORD_SEED and config == base_config(world) and (WEIGHTS / world.name).is_dir()
+        seed == RECORD_SEED and config == base_config(world) and record_folder(world).is_dir()
     )
 
 
@@ -146,7 +152,7 @@ def base_policy(
     demos = training_demos(world, seed)
     now = recipe(world, demos, seed=seed, config=config)
     record = of_record(world, seed, config)
-    folder = WEIGHTS / world.name if record else _cached(now)
+    folder = record_folder(world) if record else _cached(now)
     if record and not retrain and (folder / "config.json").is_file():
         then = read_config(folder).get("meta", {}).get("recipe", {})
         change = recipe_change(then, now)
