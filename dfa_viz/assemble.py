@@ -15,6 +15,7 @@ from dfa_viz.recording import write_recording
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from policy.base import base_folder
+from policy.evaluate import DRAWN
 from policy.outside import chosen_policy
 from policy.saliency import check_explainable, check_method
 from policy.train import BASE, training_tasks
@@ -127,13 +128,63 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         raise UserError(f"accuracy is a probability in [0, 1], not {args.accuracy}")
     if args.saliency is not None:
         check_method(args.saliency)
+    if world.benchmark and args.shift not in world.shifts:
+        world.test_task(args.shift, args.seed)  # its one line, before anything is spent
     overrides = parse_labels(world, args.label)
     learned = None if args.prior is None else LearnedPrior.load(args.prior, world)
-    policy = chosen_policy(world, args.policy, args.weights)
+    phase = Phases(progress)
+    try:
+        return _run(args, world, phase, overrides, learned, progress)
+    finally:
+        phase.close()
+
+
+class Phases:
+    """What `dfa run` is doing now, as one status line on stderr (tqdm, as the bars are), its
+    clock restarted at each phase; nothing when progress is off."""
+
+    def __init__(self, on: bool) -> None:
+        self.bar = tqdm(
+            total=0, desc="starting", bar_format="dfa: {desc} [{elapsed}]", disable=not on
+        )
+
+    def __call__(self, text: str) -> None:
+        self.bar.set_description_str(text, refresh=False)
+        self.bar.reset(total=0)  # the clock from now, shown with the new text
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def _policy(args: RunArgs, world: World, phase: Phases, progress: bool):
+    """The policy `dfa run` diagnoses; the base policy cloned with a bar on first use."""
+    if args.policy is not None or args.weights is not None:
+        phase(f"loading the policy {args.policy}")
+        return chosen_policy(world, args.policy, args.weights)
+    phase(f"the base policy of {world.name} (cloned on the expert's demonstrations on first use)")
+    bar = tqdm(total=BASE.steps, desc="cloning the base policy", leave=False, disable=not progress)
+    try:
+        policy = base_policy(world, on_loss=lambda step, loss: bar.update(1))
+    finally:
+        bar.close()
+    policy.fits(world)
+    return policy
+
+
+def _run(args: RunArgs, world: World, phase: Phases, overrides, learned, progress) -> RunRecord:
+    policy = _policy(args, world, phase, progress)
+    who = "the base policy" if args.policy is None else f"the policy {args.policy}"
     if args.saliency is not None:
         check_explainable(policy)
     if world.benchmark:
-        task, _ = failing_test_task(world, policy, args.shift, args.seed)
+        phase(f"drawing {args.shift} tasks until {who} fails one (at most {DRAWN})")
+        drawn = tqdm(total=DRAWN, desc="tasks drawn", leave=False, disable=not progress)
+        try:
+            task, _ = failing_test_task(
+                world, policy, args.shift, args.seed, who=who, on_draw=lambda k: drawn.update(1)
+            )
+        finally:
+            drawn.close()
         demo = load_demo(world, task, args.demo) if args.demo is not None else None
     elif args.demo is not None:  # no test tasks: the demonstration's first scene is the task
         task = world.task_for(Trajectory.load(args.demo).scenes[0])
@@ -142,24 +193,38 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         raise UserError(
             f"{world.name} makes no test tasks: give the demonstration to diagnose from (--demo)"
         )
+    said = {
+        "demonstrate": "the demonstration, then the search for the smallest concept edit",
+        "label": f"feedback taken; variants of the demonstration, then finetuning {who}",
+    }
     user = SimulatedUser(
-        world, accuracy=args.accuracy, seed=args.seed, overrides=overrides, demo=demo
+        world,
+        accuracy=args.accuracy,
+        seed=args.seed,
+        overrides=overrides,
+        demo=demo,
+        on_asked=lambda asked: phase(said[asked]),
     )
     bars: dict[str, tqdm] = {}
+    steps = args.adapt.train_config(0).steps
+    n_eval = args.adapt.finetuning.n_eval
+    phase(f"rolling {who} out on the test task")
+
+    def bar(key: str, total: int, desc: str) -> tqdm:
+        if key not in bars:  # made once: a bar made and dropped still prints a line
+            bars[key] = tqdm(total=total, desc=desc, leave=False)
+        return bars[key]
 
     def on_progress(size: int, done: int, total: int) -> None:
         if progress:
-            bar = bars.setdefault(
-                f"s{size}", tqdm(total=total, desc=f"search, size {size}", leave=False)
-            )
-            bar.update(done - bar.n)
+            b = bar(f"s{size}", total, f"search, size {size}")
+            b.update(done - b.n)
 
     def on_loss(step: int, loss: float) -> None:
         if progress:
-            bar = bars.setdefault(
-                "ft", tqdm(total=args.adapt.train_config(0).steps, desc="finetuning", leave=False)
-            )
-            bar.update(1)
+            bar("ft", steps, "finetuning").update(1)
+        if step == steps - 1:
+            phase(f"scoring both policies on {2 * n_eval} fresh tasks")
 
     try:
         record = run_loop(
@@ -176,6 +241,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     finally:
         for bar in bars.values():
             bar.close()
+    phase("writing the recording")
     path = args.out / recording_name(
         world, args.shift, args.seed, policy, args.policy, args.weights
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -39,6 +40,8 @@ class SimulatedUser:
         concept called TR, or a TR one called TI with every instantiation accepted).
     overrides: (slot, concept) -> True (TR) / False (TI), answers fixed by hand.
     demo: a demonstration the user brought (e.g. loaded from .npz) instead of the expert's.
+    on_asked: told "demonstrate" or "label" each time the loop asks (what `dfa run` shows as
+        its progress).
     """
 
     world: World
@@ -46,6 +49,7 @@ class SimulatedUser:
     seed: int = 0
     overrides: dict[tuple[str, str], bool] = field(default_factory=dict)
     demo: Trajectory | None = None
+    on_asked: Callable[[str], None] | None = None
 
     def __post_init__(self) -> None:
         self._rng = np.random.default_rng([self.seed, 7])
@@ -58,9 +62,13 @@ class SimulatedUser:
         return not rollout.success
 
     def demonstrate(self, task: Task) -> Trajectory:
+        if self.on_asked is not None:
+            self.on_asked("demonstrate")
         return self.demo if self.demo is not None else self.world.demonstrate(task)
 
     def label(self, task: Task, edit: Edit) -> Feedback:
+        if self.on_asked is not None:
+            self.on_asked("label")
         changed = {(ch.slot, ch.concept) for ch in edit.changes}
         stray = [f"{s}.{c}" for s, c in self.overrides if (s, c) not in changed]
         if stray:

@@ -8,6 +8,7 @@ did it keep what the policy could already do?
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from policy.model import Policy
@@ -62,21 +63,37 @@ def score(world: World, policy: Policy, task: Task, *, n: int = N_EVAL, seed: in
     return Score(tuple(solved[:n]), tuple(solved[n:]))
 
 
+STREAM = 200  # task seeds per run seed: seed s draws test tasks s * STREAM + k, k = 0, 1, ...
+DRAWN = 50  # tasks drawn before saying there is nothing to diagnose
+
+
 def failing_test_task(
-    world: World, policy: Policy, shift: str, seed: int, *, tries: int = 200
+    world: World,
+    policy: Policy,
+    shift: str,
+    seed: int,
+    *,
+    tries: int = DRAWN,
+    who: str = "the base policy",
+    on_draw: Callable[[int], None] | None = None,
 ) -> tuple[Task, Trajectory]:
     """The first task of kind `shift` in the seeded stream on which the policy fails.
 
     A test task is a shifted task the policy fails on: that is what there is to diagnose.
-    Draws world.test_task(shift, seed * tries + k) for k = 0, 1, ... and returns the first
-    failure with its rollout.
+    Draws world.test_task(shift, seed * STREAM + k) for k = 0, 1, ... up to `tries` tasks and
+    returns the first failure with its rollout; after `tries` successes, a UserError that says
+    so (`who`: the policy, as the message names it). `on_draw(k)` after each task drawn.
     """
+    if not 1 <= tries <= STREAM:
+        raise UserError(f"tasks to draw must be from 1 to {STREAM}, not {tries}")
     for k in range(tries):
-        task = world.test_task(shift, seed * tries + k)
+        task = world.test_task(shift, seed * STREAM + k)
         rollout = world.rollout(task, policy)
+        if on_draw is not None:
+            on_draw(k)
         if not rollout.success:
             return task, rollout
     raise UserError(
-        f"the base policy solved all {tries} {world.name} {shift} tasks drawn for seed {seed}: "
+        f"{who} solved all {tries} {world.name} {shift} tasks drawn for seed {seed}: "
         "nothing to diagnose; try another seed or shift"
     )

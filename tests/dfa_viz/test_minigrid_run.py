@@ -1,0 +1,154 @@
+"""`dfa run` on MiniGrid and BabyAI worlds as a person runs it: the whole loop on BabyAI levels,
+progress shown in every phase, a prompt exit after the report, and memory bounded before it is
+spent. Base policies are cloned on first use and kept in the usual cache."""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+
+import pytest
+
+DFA = [sys.executable, "-m", "dfa_viz.cli"]
+TINY = ["--budget", "2", "--steps", "10", "--n-eval", "2", "--max-size", "1"]
+EXIT_GRACE_S = 120  # a process still alive this long after its report has hung
+
+
+def untrained(env_id: str, folder) -> str:
+    """A checkpoint of the project's CNN, seeded and never trained, for `env_id`'s frames: a
+    policy that fails its tasks whatever processor trained nothing."""
+    import torch
+
+    from policy import ImagePolicy, Policy, PolicyConfig, save_policy
+    from sim import get_world
+
+    world = get_world(f"minigrid:{env_id}")
+    torch.manual_seed(0)
+    config = PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+    save_policy(Policy(ImagePolicy(config)), folder)
+    return str(folder)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id", ["BabyAI-GoToObjS4-v0", "BabyAI-GoToRedBallNoDists-v0"])
+def test_babyai_levels_run_end_to_end(env_id, tmp_path):
+    policy = untrained(env_id, tmp_path / "policy")
+    out = subprocess.run(
+        [*DFA, "run", "--world", f"minigrid:{env_id}", "--shift", "other", "--json", *TINY,
+         "--policy", policy, "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    record = json.loads(out.stdout)  # stdout holds the answer alone (BabyAI's prints go aside)
+    assert record["world"] == f"minigrid:{env_id}" and record["failed"] is True
+    assert record["instruction"].startswith("go to the ")
+    assert record["instruction"].endswith("(from wherever it starts)")
+    assert record["budget"] == 2 and record["success_before"] is not None
+    assert os.path.isfile(record["recording"])
+
+
+@pytest.mark.slow
+def test_run_shows_every_phase_and_exits_after_its_report(tmp_path):
+    """The report's last line, then the process ends: nothing keeps it alive; on stderr, a
+    status line names each phase as it starts, and the policy as the user gave it."""
+    policy = untrained("BabyAI-GoToObjS4-v0", tmp_path / "policy")
+    args = [*DFA, "run", "--world", "minigrid:BabyAI-GoToObjS4-v0", "--shift", "other", *TINY]
+    with open(tmp_path / "stderr.txt", "w") as errors:
+        proc = subprocess.Popen(
+            [*args, "--policy", policy, "--out", str(tmp_path)],
+            stdout=subprocess.PIPE,
+            stderr=errors,
+            text=True,
+        )
+        with proc.stdout:
+            lines = []
+            for line in proc.stdout:
+                lines.append(line)
+                if line.strip().startswith("recording:"):
+                    break
+            assert lines and lines[-1].strip().startswith("recording:"), lines
+            reported = time.monotonic()
+            assert proc.wait(timeout=EXIT_GRACE_S) == 0
+        assert time.monotonic() - reported < EXIT_GRACE_S
+    err = (tmp_path / "stderr.txt").read_text()
+    for phase in (
+        f"loading the policy {policy}",
+        f"drawing other tasks until the policy {policy} fails one (at most 50)",
+        "the demonstration, then the search",
+        f"feedback taken; variants of the demonstration, then finetuning the policy {policy}",
+        "scoring both policies on 4 fresh tasks",
+        "writing the recording",
+    ):
+        assert f"dfa: {phase}" in err, phase
+    assert "base policy" not in err and "base policy" not in "".join(lines)
+
+
+@pytest.mark.slow
+def test_the_base_policy_is_cloned_in_view_and_draws_are_limited(tmp_path):
+    """On first use the base policy is cloned with a phase line; tasks are drawn until it
+    fails one, at most 50: a report, or one line saying it solved all 50."""
+    proc = subprocess.run(
+        [*DFA, "run", "--world", "minigrid:BabyAI-GoToObjS4-v0", "--shift", "other", *TINY,
+         "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )  # fmt: skip
+    assert "dfa: the base policy of minigrid:BabyAI-GoToObjS4-v0" in proc.stderr
+    assert "dfa: drawing other tasks until the base policy fails one (at most 50)" in proc.stderr
+    if proc.returncode == 2:
+        last = proc.stderr.strip().splitlines()[-1]
+        assert last.startswith("dfa: error: the base policy solved all 50 "), last
+        assert last.endswith("nothing to diagnose; try another seed or shift")
+    else:
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert proc.stdout.strip().splitlines()[-1].strip().startswith("recording:")
+
+
+def _limited(args: list[str], limit_bytes: int) -> tuple[int, str, int]:
+    """Run `args` with its address space limited: (exit code, stderr, peak resident bytes)."""
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+
+    env = {**os.environ, "MALLOC_ARENA_MAX": "2"}  # glibc's arenas reserve address space
+    proc = subprocess.Popen(
+        args,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        preexec_fn=limit,
+        env=env,
+        text=True,
+    )
+    with proc.stderr:
+        err = proc.stderr.read()
+    _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak, not all children's
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return proc.returncode, err, usage.ru_maxrss * 1024
+
+
+def test_frames_too_large_are_one_line_before_memory_is_spent(tmp_path):
+    """1600x1600 frames (MultiRoom-N6 at tile 64) once took 8.5 GB and a MemoryError: now one
+    line naming a tile that fits, exit 2, under a 3 GiB address-space limit, the peak that of
+    the program's own imports."""
+    code, err, peak = _limited(
+        [
+            *DFA,
+            "run",
+            "--world",
+            "minigrid:MiniGrid-MultiRoom-N6-v0:tile=64",
+            "--out",
+            str(tmp_path),
+        ],
+        3 * 2**30,
+    )
+    assert code == 2, err[-2000:]
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "give tile=10 or less" in lines[0], err
+    assert peak < 1 * 2**30, peak
