@@ -14,6 +14,8 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Any
@@ -31,6 +33,20 @@ def init_worker() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+def init_pool_worker() -> None:
+    """A local pool's worker: init_worker, and an end when the process that started it ends
+    (killed, say: the pool's queue would never tell the worker, which would wait forever)."""
+    init_worker()
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="dfa-parent-watch", daemon=True).start()
 
 
 def run_job(fn: Job, item: Any, shared: Any) -> Any:
@@ -85,7 +101,7 @@ def run_local(
     ctx = multiprocessing.get_context("spawn")  # no fork after torch, EGL or MuJoCo started
     todo = list(items)
     done = 0
-    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_worker)
+    pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=init_pool_worker)
     try:
         running: set = set()
         while todo or running:

@@ -5,7 +5,9 @@
     dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
-one line and exits 2.
+one line and exits 2; a disk that fills up (or a quota, or a file size limit) prints one line
+naming the file and exits 1, leaving what was written whole, so that the same command run
+again with room resumes or starts afresh.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from dfa_viz.configs import (
     TrainArgs,
     WorldsArgs,
 )
-from sim.core import UserError
+from sim.core import UserError, files
 
 Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experiment`)
     Annotated[Q2Args, tyro.conf.subcommand("q2")],
@@ -251,8 +253,15 @@ def check_output(config) -> None:
         raise UserError(f"--out {out}: {above} cannot be written to")
 
 
+def no_space(e: OSError) -> str:
+    """A write that ran out of room, in one line."""
+    where = f"{e.filename}: " if e.filename else ""
+    return f"{where}no space left to write it ({e.strerror}); make room and run the command again"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `dfa` console script; user errors print one line and exit 2."""
+    """Entry point of the `dfa` console script; user errors print one line and exit 2, a full
+    disk one line and exit 1."""
     args = sys.argv[1:] if argv is None else list(argv)
     try:
         config = tyro.cli(
@@ -263,6 +272,11 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as e:
         print(f"dfa: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        if e.errno not in files.NO_SPACE:
+            raise
+        print(f"dfa: error: {no_space(e)}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("dfa: interrupted", file=sys.stderr)
         return 130

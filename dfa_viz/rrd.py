@@ -45,21 +45,27 @@ def new_stream(rid: uuid.UUID, *, app_id: str = APP_ID) -> rr.RecordingStream:
 
 
 class RrdFile:
-    """An .rrd written atomically: logged to a temporary file beside `path`, moved into place
-    by `close()`; `close(keep=False)` (or an exception inside `with`) leaves `path` as it was."""
+    """An .rrd written atomically: logged into memory, written whole to a temporary file beside
+    `path` and moved into place by `close()`; `close(keep=False)` (or an exception inside
+    `with`) leaves `path` as it was. A write that fails (a full disk) raises an OSError naming
+    `path`, and leaves `path` as it was.
+
+    The stream goes to rerun's binary stream, not its file sink (`rec.save`): once a write to
+    its file fails, rerun 0.41's file sink makes `flush()` and `disconnect()` wait forever.
+    A recording is a few megabytes; the bytes are held until `close()`.
+    """
 
     def __init__(self, path: str | Path, rid: uuid.UUID, *, app_id: str = APP_ID) -> None:
         self.path = Path(path)
-        self.tmp = files.temp_beside(self.path)
         self.rec = new_stream(rid, app_id=app_id)
-        self.rec.save(self.tmp)
+        self.stream = rr.binary_stream(self.rec)
 
     def close(self, *, keep: bool = True) -> Path:
         self.rec.flush()
         self.rec.disconnect()
+        data = self.stream.read(flush=True) or b""  # the whole file, its footer included
         if keep:
-            files.commit(self.tmp, self.path)
-        files.discard(self.tmp)
+            files.write_bytes(self.path, data)
         return self.path
 
     def __enter__(self) -> rr.RecordingStream:

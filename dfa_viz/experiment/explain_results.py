@@ -2,15 +2,17 @@
 
     <out>/config.json   the settings every job shares (a folder keeps to one set)
     <out>/tasks.csv     one row per (world, shift, seed, explainer) (explain.COLUMNS); whole
-                        lines appended while the benchmark runs, rewritten sorted by key at the
-                        end (to a temporary file, then renamed)
+                        lines appended while the benchmark runs (lines that do not fit on the
+                        disk are cut off again), rewritten sorted by key at the end (to a
+                        temporary file, then renamed)
     <out>/timings.csv   per row: its key, the explainer's wall time on that task and the worker
                         (not part of the results: it differs between executions)
     <out>/table.md      hit rates with 95% Wilson intervals, and time per task
     <out>/hits.png      (explain_figures.py)
 
-An interrupted benchmark resumes from the folder: a task is done when every explainer has its
-row; a line cut short by the interruption is dropped.
+An interrupted benchmark (a killed process, a full disk) resumes from the folder: a task is
+done when every explainer has its row; a line cut short by the interruption is never read as a
+row, and dropped. A task's timings are appended before its rows.
 """
 
 from __future__ import annotations
@@ -18,7 +20,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -94,8 +95,8 @@ class ExplainFolder:
 
     @staticmethod
     def _read(path: Path, key) -> list[dict[str, str]]:
-        with path.open(newline="") as f:
-            rows = [r for r in csv.DictReader(f) if None not in r.values() and None not in r]
+        reader = csv.DictReader(io.StringIO(files.whole_lines(path), newline=""))
+        rows = [r for r in reader if None not in r.values() and None not in r]
         return list({key(r): r for r in rows}.values())
 
     def rows(self) -> list[dict[str, str]]:
@@ -114,18 +115,12 @@ class ExplainFolder:
         return {k for k, got in have.items() if need <= got}
 
     def append(self, result: Mapping[str, list[dict[str, str]]]) -> None:
-        """Append one task's rows and timings as whole lines, flushed to disk."""
+        """Append one task's timings, then its rows, each all on disk as whole lines or none."""
         for path, columns, rows in (
-            (self.tasks_csv, COLUMNS, result["rows"]),
             (self.timings_csv, TIMING_COLUMNS, result["timings"]),
+            (self.tasks_csv, COLUMNS, result["rows"]),
         ):
-            data = "".join(_line(columns, r) for r in rows).encode()
-            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-            try:
-                os.write(fd, data)
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+            files.append_bytes(path, "".join(_line(columns, r) for r in rows).encode())
 
     def finalise(self) -> list[dict[str, str]]:
         """Rewrite both files sorted by key (atomically); returns the rows."""

@@ -2,15 +2,17 @@
 
     <out>/config.json   the settings every run shares (a folder keeps to one set)
     <out>/runs.csv      one row per finished run (runner.COLUMNS); appended one whole line at
-                        a time while the experiment runs, rewritten sorted by run key (to a
-                        temporary file, then renamed) when it ends
+                        a time while the experiment runs (a line that does not fit on the disk
+                        is cut off again), rewritten sorted by run key (to a temporary file,
+                        then renamed) when it ends
     <out>/timings.csv   per run: its key, wall time and the worker that ran it (not part of the
                         results: it differs between executions)
     <out>/table.md      means and 95% confidence intervals beside the paper's numbers
     <out>/plots/*.png, <out>/curves.rrd   (figures.py)
 
-An interrupted experiment resumes from the folder: runs whose key is in runs.csv are skipped;
-a line cut short by the interruption is dropped.
+An interrupted experiment (a killed process, a full disk) resumes from the folder: runs whose
+key is in runs.csv are skipped; a line cut short by the interruption is never read as a row,
+and dropped. A run's timing is appended before its row, so a run in runs.csv has its timing.
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ import csv
 import io
 import json
 import math
-import os
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -91,23 +92,17 @@ class ResultsFolder:
 
     def rows(self) -> list[dict[str, str]]:
         """Every complete row of runs.csv (the last row wins if a key appears twice)."""
-        with self.runs_csv.open(newline="") as f:
-            rows = [r for r in csv.DictReader(f) if None not in r.values() and None not in r]
+        reader = csv.DictReader(io.StringIO(files.whole_lines(self.runs_csv), newline=""))
+        rows = [r for r in reader if None not in r.values() and None not in r]
         return list({key_of(r): r for r in rows}.values())
 
     def done(self) -> set[Key]:
         return {key_of(r) for r in self.rows()}
 
     def append(self, result: dict[str, object]) -> None:
-        """Append one run's row (and its timing) as whole lines, flushed to disk."""
-        for path, columns in ((self.runs_csv, COLUMNS), (self.timings_csv, TIMING_COLUMNS)):
-            line = _csv_line(columns, result).encode()
-            fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-            try:
-                os.write(fd, line)
-                os.fsync(fd)
-            finally:
-                os.close(fd)
+        """Append one run's timing, then its row, each a whole line on disk or none."""
+        for path, columns in ((self.timings_csv, TIMING_COLUMNS), (self.runs_csv, COLUMNS)):
+            files.append_bytes(path, _csv_line(columns, result).encode())
 
     def finalise(self) -> list[dict[str, str]]:
         """Rewrite runs.csv sorted by run key (atomically); returns the rows."""

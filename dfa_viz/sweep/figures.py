@@ -9,15 +9,15 @@ sweep's trials, grey where it never applies (the value every task already has).
 
 from __future__ import annotations
 
+import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from search.sweep import CellKey, SweepResult
-from sim.core import PRESENCE, ConceptSpace, files
+from sim.core import PRESENCE, ConceptSpace
 
 LEFT_IN = 1.7  # row labels
 RIGHT_IN = 1.0  # the colour bar
@@ -163,13 +163,13 @@ def _cmap():
     return colormaps["magma_r"].with_extremes(bad=NOT_APPLIED)
 
 
-def write_png(path: Path, image: np.ndarray) -> Path:
-    """An image as a PNG, written atomically."""
+def png_bytes(image: np.ndarray) -> bytes:
+    """uint8 (H, W, 3) as the bytes of a PNG file."""
     from PIL import Image
 
-    with files.atomic_path(path) as tmp:
-        Image.fromarray(image).save(tmp, format="png")
-    return Path(path)
+    buf = io.BytesIO()
+    Image.fromarray(image).save(buf, format="png")
+    return buf.getvalue()
 
 
 def concept_bars(result: SweepResult, slot: str, concept: str) -> np.ndarray | None:

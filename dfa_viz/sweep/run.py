@@ -133,7 +133,10 @@ def check(args: SweepArgs, world: World) -> None:
 
 
 def run_sweep(args: SweepArgs) -> SweepOutput:
-    """Sweep, then write OUT/sweep.csv, OUT/heatmap.png and OUT/sweep.rrd (each atomically)."""
+    """Sweep, then write OUT/sweep.csv, OUT/heatmap.png and OUT/sweep.rrd, together: the table
+    and the picture wait in temporary files until the recording is in place, so that a run
+    cut short (a killed process, a full disk) leaves the last whole set as it was. A sweep
+    starts afresh each time."""
     from sim import get_world
 
     world = get_world(args.world)
@@ -179,17 +182,16 @@ def run_sweep(args: SweepArgs) -> SweepOutput:
         bar.close()
     wall_s = time.perf_counter() - t0
 
-    from dfa_viz.sweep.figures import heatmap, write_png
+    from dfa_viz.sweep.figures import heatmap, png_bytes
     from dfa_viz.sweep.recording import write_sweep_recording
-    from dfa_viz.sweep.tables import write_csv
+    from dfa_viz.sweep.tables import csv_text
 
-    out.mkdir(parents=True, exist_ok=True)
     picture = heatmap(world.space, result)
-    csv = write_csv(out / "sweep.csv", result)
-    png = write_png(out / "heatmap.png", picture.image)
-    rrd = write_sweep_recording(
-        out / "sweep.rrd", world, policy, result, heatmap=picture, worst=args.worst
-    )
+    csv, png, rrd = out / "sweep.csv", out / "heatmap.png", out / "sweep.rrd"
+    with files.atomic_path(csv) as csv_tmp, files.atomic_path(png) as png_tmp:
+        csv_tmp.write_text(csv_text(result))
+        png_tmp.write_bytes(png_bytes(picture.image))
+        write_sweep_recording(rrd, world, policy, result, heatmap=picture, worst=args.worst)
     return SweepOutput(result, out, csv, png, rrd, wall_s)
 
 

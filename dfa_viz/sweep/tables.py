@@ -6,10 +6,8 @@ from __future__ import annotations
 import csv
 import io
 import math
-from pathlib import Path
 
 from search.sweep import ConceptDamage, SweepCell, SweepResult, label
-from sim.core import files
 
 COLUMNS = (
     "kind",
@@ -96,13 +94,13 @@ def rows(result: SweepResult) -> list[dict[str, str]]:
     return out
 
 
-def write_csv(path: Path, result: SweepResult) -> Path:
+def csv_text(result: SweepResult) -> str:
+    """sweep.csv: the header and rows(result)."""
     buf = io.StringIO()
     writer = csv.DictWriter(buf, COLUMNS, lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows(result))
-    files.write_text(path, buf.getvalue())
-    return Path(path)
+    return buf.getvalue()
 
 
 def _rate(n: int, k: int, ci: tuple[float, float]) -> str:

@@ -2,21 +2,33 @@
 
 A reader sees either the old file or the whole new one, never a part; a write that fails (an
 exception, a killed process) leaves the old file as it was and no temporary file behind it
-(a killed process may leave a hidden `.<name>.*.tmp` file, never the target half-written).
+(a killed process may leave a hidden `.<name>.<pid>-....tmp` file, never the target
+half-written; the next write of the same file on this machine removes it once that process has
+ended). A write that fails for want of space raises an OSError that names the target.
+
+Files that grow a line at a time (results CSVs) are appended whole or not at all
+(`append_bytes`) and read up to their last newline (`whole_lines`), so that a line cut short
+is never taken for a row.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import os
 import re
+import socket
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 _UMASK = os.umask(0)
 os.umask(_UMASK)
+_HOST = hashlib.sha256(socket.gethostname().encode()).hexdigest()[:6]
+NO_SPACE = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+"""What a write that ran out of room raises: no space on the device, over a quota, over the
+process's file size limit."""
 
 
 def cache_dir() -> Path:
@@ -28,15 +40,48 @@ def cache_dir() -> Path:
 def temp_beside(path: str | Path) -> Path:
     """A new, empty, hidden temporary file in `path`'s folder (created with it if needed).
 
-    Its name keeps `path`'s suffix, so tools that look at the extension still accept it.
+    Its name keeps `path`'s suffix, so tools that look at the extension still accept it, and
+    names this process: the temporary files of `path` that processes on this machine left
+    when they were killed are removed first.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in stale_temps(path):
+        discard(stale)
     fd, tmp = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}"
+        dir=path.parent, prefix=f".{path.stem}.{os.getpid()}-{_HOST}-", suffix=f".tmp{path.suffix}"
     )
     os.close(fd)
     return Path(tmp)
+
+
+def stale_temps(path: str | Path) -> list[Path]:
+    """The temporary files of `path` (temp_beside's) whose process on this machine has ended."""
+    path = Path(path)
+    name = re.compile(
+        rf"\.{re.escape(path.stem)}\.(\d+)-{_HOST}-[a-z0-9_]+\.tmp{re.escape(path.suffix)}"
+    )
+    try:
+        names = os.listdir(path.parent)
+    except FileNotFoundError:
+        return []
+    return [
+        path.parent / n
+        for n in sorted(names)
+        if (m := name.fullmatch(n)) and not _running(int(m.group(1)))
+    ]
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
 
 
 def commit(tmp: str | Path, path: str | Path) -> Path:
@@ -69,8 +114,45 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     try:
         yield tmp
         commit(tmp, path)
+    except OSError as e:
+        raise naming(e, path, tmp) from e
     finally:
         discard(tmp)
+
+
+def naming(error: OSError, path: str | Path, tmp: str | Path | None = None) -> OSError:
+    """`error`, or where it names no file (a failed write() names none) or the temporary file
+    `tmp`, the same error naming `path`, the file the user knows."""
+    if error.filename is not None and (tmp is None or Path(error.filename) != Path(tmp)):
+        return error
+    return OSError(error.errno, error.strerror or str(error), str(path))
+
+
+def append_bytes(path: str | Path, data: bytes) -> None:
+    """Append `data` to the end of `path` and fsync it, all of it or nothing: a write that
+    fails (a full disk) cuts the file back to where it was and raises an OSError naming it."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    try:
+        size = os.fstat(fd).st_size
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]  # a full disk writes part, then raises
+            os.fsync(fd)
+        except OSError as e:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, size)
+                os.fsync(fd)
+            raise naming(e, path) from e
+    finally:
+        os.close(fd)
+
+
+def whole_lines(path: str | Path) -> str:
+    """The UTF-8 text of `path` up to and including its last newline: a last line that a
+    killed process or a full disk cut short is left out."""
+    text = Path(path).read_text()
+    return text[: text.rfind("\n") + 1]
 
 
 def write_bytes(path: str | Path, data: bytes) -> Path:
