@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from policy.base import base_folder
 from policy.evaluate import DRAWN
 from policy.outside import chosen_policy
 from policy.saliency import check_explainable, check_method
-from policy.train import BASE, training_tasks
+from policy.train import base_config, training_tasks
 from search import SearchConfig
 from search.prior import LearnedPrior
 from sim import get_world
@@ -73,7 +74,7 @@ def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path
     folder it is kept in and its success on the training tasks."""
     world = get_world(name)
     check_seed(seed)
-    bar = tqdm(desc=f"training {name}", unit="step", leave=False, total=BASE.steps)
+    bar = tqdm(desc=f"training {name}", unit="step", leave=False, total=base_config(world).steps)
     policy = base_policy(world, seed=seed, retrain=retrain, on_loss=lambda s, loss: bar.update(1))
     bar.close()
     tasks = training_tasks(world, seed)
@@ -132,6 +133,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         world.test_task(args.shift, args.seed)  # its one line, before anything is spent
     overrides = parse_labels(world, args.label)
     learned = None if args.prior is None else LearnedPrior.load(args.prior, world)
+    progress = progress and sys.stderr.isatty()  # a status line and bars are a terminal's
     phase = Phases(progress)
     try:
         return _run(args, world, phase, overrides, learned, progress)
@@ -141,7 +143,8 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
 
 class Phases:
     """What `dfa run` is doing now, as one status line on stderr (tqdm, as the bars are), its
-    clock restarted at each phase; nothing when progress is off."""
+    clock restarted at each phase; nothing when progress is off (--json, or stderr is not a
+    terminal: a log or a pipe gets the report and one-line errors only)."""
 
     def __init__(self, on: bool) -> None:
         self.bar = tqdm(
@@ -159,10 +162,15 @@ class Phases:
 def _policy(args: RunArgs, world: World, phase: Phases, progress: bool):
     """The policy `dfa run` diagnoses; the base policy cloned with a bar on first use."""
     if args.policy is not None or args.weights is not None:
-        phase(f"loading the policy {args.policy}")
+        phase(f"loading the policy {args.policy or args.weights}")
         return chosen_policy(world, args.policy, args.weights)
     phase(f"the base policy of {world.name} (cloned on the expert's demonstrations on first use)")
-    bar = tqdm(total=BASE.steps, desc="cloning the base policy", leave=False, disable=not progress)
+    bar = tqdm(
+        total=base_config(world).steps,
+        desc="cloning the base policy",
+        leave=False,
+        disable=not progress,
+    )
     try:
         policy = base_policy(world, on_loss=lambda step, loss: bar.update(1))
     finally:
@@ -173,7 +181,8 @@ def _policy(args: RunArgs, world: World, phase: Phases, progress: bool):
 
 def _run(args: RunArgs, world: World, phase: Phases, overrides, learned, progress) -> RunRecord:
     policy = _policy(args, world, phase, progress)
-    who = "the base policy" if args.policy is None else f"the policy {args.policy}"
+    chosen = args.policy or args.weights
+    who = "the base policy" if chosen is None else f"the policy {chosen}"
     if args.saliency is not None:
         check_explainable(policy)
     if world.benchmark:

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import json
 import os
+import pty
 import resource
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -16,6 +18,37 @@ import pytest
 DFA = [sys.executable, "-m", "dfa_viz.cli"]
 TINY = ["--budget", "2", "--steps", "10", "--n-eval", "2", "--max-size", "1"]
 EXIT_GRACE_S = 120  # a process still alive this long after its report has hung
+
+
+class Terminal:
+    """A pseudo-terminal for a child's stderr, as a person's shell gives it (dfa shows its
+    phases and bars only there); what the child wrote is `text` once it has exited."""
+
+    def __init__(self) -> None:
+        self.master, self.slave = pty.openpty()
+        self.chunks: list[bytes] = []
+        self.reader = threading.Thread(target=self._drain, daemon=True)
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                data = os.read(self.master, 1 << 16)
+            except OSError:  # EIO: every writer has closed it
+                return
+            if not data:
+                return
+            self.chunks.append(data)
+
+    def started(self) -> None:
+        """Called once the child holds the terminal: the parent's end of it is closed."""
+        os.close(self.slave)
+        self.reader.start()
+
+    @property
+    def text(self) -> str:
+        self.reader.join()
+        os.close(self.master)
+        return b"".join(self.chunks).decode(errors="replace")
 
 
 def untrained(env_id: str, folder) -> str:
@@ -59,24 +92,25 @@ def test_run_shows_every_phase_and_exits_after_its_report(tmp_path):
     status line names each phase as it starts, and the policy as the user gave it."""
     policy = untrained("BabyAI-GoToObjS4-v0", tmp_path / "policy")
     args = [*DFA, "run", "--world", "minigrid:BabyAI-GoToObjS4-v0", "--shift", "other", *TINY]
-    with open(tmp_path / "stderr.txt", "w") as errors:
-        proc = subprocess.Popen(
-            [*args, "--policy", policy, "--out", str(tmp_path)],
-            stdout=subprocess.PIPE,
-            stderr=errors,
-            text=True,
-        )
-        with proc.stdout:
-            lines = []
-            for line in proc.stdout:
-                lines.append(line)
-                if line.strip().startswith("recording:"):
-                    break
-            assert lines and lines[-1].strip().startswith("recording:"), lines
-            reported = time.monotonic()
-            assert proc.wait(timeout=EXIT_GRACE_S) == 0
-        assert time.monotonic() - reported < EXIT_GRACE_S
-    err = (tmp_path / "stderr.txt").read_text()
+    terminal = Terminal()
+    proc = subprocess.Popen(
+        [*args, "--policy", policy, "--out", str(tmp_path)],
+        stdout=subprocess.PIPE,
+        stderr=terminal.slave,
+        text=True,
+    )
+    terminal.started()
+    with proc.stdout:
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if line.strip().startswith("recording:"):
+                break
+        assert lines and lines[-1].strip().startswith("recording:"), lines
+        reported = time.monotonic()
+        assert proc.wait(timeout=EXIT_GRACE_S) == 0
+    assert time.monotonic() - reported < EXIT_GRACE_S
+    err = terminal.text
     for phase in (
         f"loading the policy {policy}",
         f"drawing other tasks until the policy {policy} fails one (at most 50)",
@@ -93,22 +127,26 @@ def test_run_shows_every_phase_and_exits_after_its_report(tmp_path):
 def test_the_base_policy_is_cloned_in_view_and_draws_are_limited(tmp_path):
     """On first use the base policy is cloned with a phase line; tasks are drawn until it
     fails one, at most 50: a report, or one line saying it solved all 50."""
-    proc = subprocess.run(
+    terminal = Terminal()
+    proc = subprocess.Popen(
         [*DFA, "run", "--world", "minigrid:BabyAI-GoToObjS4-v0", "--shift", "other", *TINY,
          "--out", str(tmp_path)],
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=terminal.slave,
         text=True,
-        timeout=1800,
     )  # fmt: skip
-    assert "dfa: the base policy of minigrid:BabyAI-GoToObjS4-v0" in proc.stderr
-    assert "dfa: drawing other tasks until the base policy fails one (at most 50)" in proc.stderr
+    terminal.started()
+    stdout, _ = proc.communicate(timeout=1800)
+    err = terminal.text
+    assert "dfa: the base policy of minigrid:BabyAI-GoToObjS4-v0" in err
+    assert "dfa: drawing other tasks until the base policy fails one (at most 50)" in err
     if proc.returncode == 2:
-        last = proc.stderr.strip().splitlines()[-1]
+        last = err.strip().splitlines()[-1]
         assert last.startswith("dfa: error: the base policy solved all 50 "), last
         assert last.endswith("nothing to diagnose; try another seed or shift")
     else:
-        assert proc.returncode == 0, proc.stderr[-2000:]
-        assert proc.stdout.strip().splitlines()[-1].strip().startswith("recording:")
+        assert proc.returncode == 0, err[-2000:]
+        assert stdout.strip().splitlines()[-1].strip().startswith("recording:")
 
 
 def _limited(args: list[str], limit_bytes: int) -> tuple[int, str, int]:
