@@ -5,7 +5,8 @@ policy on it saw them. Test tasks start from other layouts (seeds from 1,000,000
 the scene the way a shift kind says: object_ti recolours one or two objects the mission does
 not name, distractor_ti adds the extra ball on a free cell off the expert's path, other moves
 the agent's start (positions are outside the concept space). R' is the environment's own
-reward for the layout's mission: what the mission names (sim.minigrid.mission) is
+reward for the layout's mission (fresh tasks keep the task's: layouts whose mission asks
+something else are passed over): what the mission names (sim.minigrid.mission) is
 task-relevant, the colours of the other objects and the added ball are left open, in any
 colour but the ones the mission names for their type. Every task is one the expert solves
 within the horizon; a draw it cannot solve is drawn again.
@@ -219,31 +220,28 @@ def _shifted(world, base: Scene, shift: str, rng):
 
 
 def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) -> list[Task]:
-    """n tasks on fresh layouts, each with R' made as the task's on its own layout's mission
-    (the same concepts open), drawn from it (keeping the shift, when `shifted`: only layouts
-    where the recoloured object is there and its mission leaves it open): the open colours,
-    the distractor (placed off the expert's path), the agent's start for `other`. Drawn from
+    """n tasks on fresh layouts with the task's R', drawn from it (keeping the shift, when
+    `shifted`: only layouts where the recoloured object is there): the open colours, the
+    distractor (placed off the expert's path), the agent's start for `other`. Only layouts
+    whose mission names the same objects, as the same slots, carry the same R' (GoToDoor's and
+    Fetch's missions differ between layouts): the others are passed over. Drawn from
     np.random.default_rng([seed, 3])."""
     rng = np.random.default_rng([seed, 3])
-    open_ = tuple((s, c) for s, c, _ in task.reward.allowed)
+    names = mission(world, int(task.scene.agent[0])).names
+    reward = carrying_shift(world.space, task) if shifted else task.reward
     out: list[Task] = []
     for _ in range(MAX_TRIES * n):
         if len(out) == n:
             break
         layout = TEST_LAYOUTS + int(rng.integers(TEST_LAYOUTS))
         base = world.layout_scene(layout)
-        here = layout_reward(world, base, task.shift, open_)
-        if any(here.is_relevant(s, c) for s, c in open_):
-            continue  # this layout's mission names what the task leaves open
-        reward = here
+        m = mission(world, layout)
+        if m.names != names or m.relevant(world.space, base) != task.reward.relevant:
+            continue  # this layout's mission asks for something else
         if shifted and task.cause is not None:
             slot, concept = task.cause
             if concept != PRESENCE and not base.obj(slot).present:
                 continue  # a layout without the recoloured object cannot carry its shift
-            reward = carrying_shift(world.space, dataclasses.replace(task, reward=here))
-            value = task.scene.obj(slot).value("colour")
-            if value not in (here.allowed_values(slot, "colour") or (value,)):
-                continue  # the shift's colour is one this layout's mission names
         scene = _drawn(world, base, reward, rng)
         if scene is None:
             continue
@@ -258,10 +256,13 @@ def fresh_tasks(world, task: Task, n: int, seed: int, *, shifted: bool = False) 
             )
         if _solvable(world, scene):
             out.append(
-                Task(world.name, scene, here, task.shift, seed * 1000 + len(out), task.cause)
+                Task(world.name, scene, task.reward, task.shift, seed * 1000 + len(out), task.cause)
             )
     if len(out) < n:
-        raise UserError(f"{world.name}: only {len(out)} of {n} fresh tasks were solvable")
+        raise UserError(
+            f"{world.name}: only {len(out)} of {n} fresh tasks were solvable on layouts whose "
+            "mission asks what the task's does"
+        )
     return out
 
 
