@@ -4,12 +4,15 @@ spent. Base policies are cloned on first use and kept in the usual cache."""
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import pty
 import resource
+import struct
 import subprocess
 import sys
+import termios
 import threading
 import time
 
@@ -24,8 +27,10 @@ class Terminal:
     """A pseudo-terminal for a child's stderr, as a person's shell gives it (dfa shows its
     phases and bars only there); what the child wrote is `text` once it has exited."""
 
-    def __init__(self) -> None:
+    def __init__(self, rows: int = 40, columns: int = 200) -> None:
         self.master, self.slave = pty.openpty()
+        size = struct.pack("HHHH", rows, columns, 0, 0)  # a window's size, as a terminal has
+        fcntl.ioctl(self.slave, termios.TIOCSWINSZ, size)
         self.chunks: list[bytes] = []
         self.reader = threading.Thread(target=self._drain, daemon=True)
 
