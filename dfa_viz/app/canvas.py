@@ -83,8 +83,8 @@ class Canvas:
         self.state.submit(lambda: self._click(event), self.notify)
 
     def _click(self, event) -> None:
-        o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
-        if abs(d[2]) < 1e-9:
+        o, d = ray(event)
+        if o is None:
             return
         hit = o - o[2] / d[2] * d  # (3,) on z = 0
         u, v = hit[0] / SIZE + 0.5, 0.5 - hit[1] / SIZE
@@ -153,6 +153,21 @@ class Canvas:
                     position=(p.pos[0] * k, p.pos[1] * k, p.pos[2] * k + 0.01),
                 )
         return nodes
+
+
+def ray(event) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """A click's ray (origin, direction: float (3,) each), or (None, None) for one that cannot
+    meet the plane: missing, not three finite numbers each, or parallel to it."""
+    try:
+        o = np.asarray(event.ray_origin, dtype=float)
+        d = np.asarray(event.ray_direction, dtype=float)
+    except (TypeError, ValueError):
+        return None, None
+    if o.shape != (3,) or d.shape != (3,) or not (np.isfinite(o).all() and np.isfinite(d).all()):
+        return None, None
+    if abs(d[2]) < 1e-9:
+        return None, None
+    return o, d
 
 
 def _differs(pose, other, tol_m: float = 0.005) -> bool:

@@ -15,6 +15,7 @@ import viser
 
 from dfa_viz import charts
 from dfa_viz.app import frames, plots
+from dfa_viz.app.controls import Checked, one_of, refusal, refuse, whole
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
 from dfa_viz.overlay import SaliencyLayer, blend, failed_saliency
@@ -49,10 +50,14 @@ class ComparePanel:
                 label="frames",
                 format="png",
             )
-            self.slider = gui.add_slider("step", min=0, max=1, step=1, initial_value=0)
+            slider = gui.add_slider("step", min=0, max=1, step=1, initial_value=0)
+            self.slider = Checked(
+                slider, whole(0, lambda: int(slider.max)), client, lambda _: self.show()
+            )
             self.playback = gui.add_button_group("playback", PLAYBACK)
-            self.speed = gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1×")
-            self.saliency = gui.add_dropdown(
+            speed = gui.add_dropdown("speed", tuple(SPEEDS), initial_value="1×")
+            self.speed = Checked(speed, one_of(lambda: tuple(SPEEDS)), client)
+            saliency = gui.add_dropdown(
                 "saliency",
                 tuple(SALIENCY),
                 initial_value=SALIENCY_OFF,
@@ -75,8 +80,9 @@ class ComparePanel:
             )
         self.panel.dock_right()
         self.panel.set_width(PANEL_PX)
-        self.slider.on_update(lambda _: self.show())
-        self.saliency.on_update(lambda _: self.show(force=True))
+        self.saliency = Checked(
+            saliency, one_of(lambda: tuple(SALIENCY)), client, lambda _: self.show(force=True)
+        )
         self.playback.on_click(self._on_playback)
         self._player = threading.Thread(target=self._play_loop, daemon=True)
         self._player.start()
@@ -90,10 +96,10 @@ class ComparePanel:
             if rec is None:
                 return
             horizon = view.world.horizon
-            if self.slider.max != horizon:
-                self.slider.max = horizon
+            if self.slider.handle.max != horizon:
+                self.slider.handle.max = horizon
                 if self.slider.value > horizon:
-                    self.slider.value = 0
+                    self.slider.set(0)
             ev = rec.evaluation
             self.title.content = (
                 f"**{rec.world} · {rec.shift} · seed {rec.seed}** — "
@@ -221,10 +227,13 @@ class ComparePanel:
     # -- playback -----------------------------------------------------------------------------
     def _on_playback(self, event) -> None:
         value = event.target.value
-        top = int(self.slider.max)
+        if value not in PLAYBACK:
+            refuse(self.client, refusal("playback", value, f"accepted: {', '.join(PLAYBACK)}"))
+            return
+        top = int(self.slider.handle.max)
         if value == "▶ play":
             if int(self.slider.value) >= top:
-                self.slider.value = 0
+                self.slider.set(0)
             self._playing.set()
         elif value == "❚❚ pause":
             self._playing.clear()
@@ -232,7 +241,7 @@ class ComparePanel:
             self._playing.clear()
             cur = int(self.slider.value)
             new = {"« start": 0, "◀ step": cur - 1, "step ▶": cur + 1}[value]
-            self.slider.value = int(np.clip(new, 0, top))
+            self.slider.set(int(np.clip(new, 0, top)))
 
     def _play_loop(self) -> None:
         while not self._closed.is_set():
@@ -241,11 +250,11 @@ class ComparePanel:
             time.sleep(1.0 / (BASE_FPS * SPEEDS.get(self.speed.value, 1.0)))
             if not self._playing.is_set():
                 continue
-            cur, top = int(self.slider.value), int(self.slider.max)
+            cur, top = int(self.slider.value), int(self.slider.handle.max)
             if cur >= top:
                 self._playing.clear()
             else:
-                self.slider.value = cur + 1
+                self.slider.set(cur + 1)
 
     def close(self) -> None:
         self._closed.set()

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import viser
 
+from dfa_viz.app.controls import Checked, hidden, one_of, refusal, refuse
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
 from sim.core import Change, ConceptSpace, Label, UserError
@@ -22,8 +23,16 @@ class MarkControls:
     coloured), and for TI which instantiations are fine: checkboxes for a few, a compact
     picker for many (all / only the two shown, leave one out, put one back)."""
 
-    def __init__(self, gui, state: LoopState, change: Change, space: ConceptSpace, warn):
-        self.state, self.change, self.warn = state, change, warn
+    def __init__(
+        self,
+        client: viser.ClientHandle,
+        state: LoopState,
+        change: Change,
+        space: ConceptSpace,
+        warn,
+    ) -> None:
+        self.client, self.state, self.change, self.warn = client, state, change, warn
+        gui = client.gui
         self.space = space
         self.values = space.values(change.slot, change.concept)
         self.key = (change.slot, change.concept)
@@ -35,6 +44,9 @@ class MarkControls:
         self.boxes: dict[str, viser.GuiCheckboxHandle] = {}
         self.preset = self.leave_out = self.put_back = None
         self._acceptable: tuple[str, ...] = self.values
+        # what the two pickers offer now (a tab may send anything)
+        self._leave_offered: tuple[str, ...] = (NOT_CHOSEN, *self.values)
+        self._back_offered: tuple[str, ...] = (NOT_CHOSEN,)
         if len(self.values) <= MAX_CHECKBOXES:
             for v in self.values:
                 box = gui.add_checkbox(f"{v}", True, hint=f"{name} = {v} is fine", visible=False)
@@ -42,13 +54,15 @@ class MarkControls:
                 self.boxes[v] = box
         else:
             self.preset = gui.add_button_group("fine", (ALL, EDIT_ONLY), visible=False)
-            self.leave_out = gui.add_dropdown(
-                "leave out", (NOT_CHOSEN, *self.values), visible=False
-            )
-            self.put_back = gui.add_dropdown("put back", (NOT_CHOSEN,), visible=False)
+            leave_out = gui.add_dropdown("leave out", self._leave_offered, visible=False)
+            put_back = gui.add_dropdown("put back", self._back_offered, visible=False)
             self.preset.on_click(self._on_preset)
-            self.leave_out.on_update(self._on_leave_out)
-            self.put_back.on_update(self._on_put_back)
+            self.leave_out = Checked(
+                leave_out, one_of(lambda: self._leave_offered), client, self._on_leave_out
+            )
+            self.put_back = Checked(
+                put_back, one_of(lambda: self._back_offered), client, self._on_put_back
+            )
         self.ti.on_click(lambda _: self._answer(relevant=False))
         self.tr.on_click(lambda _: self._answer(relevant=True))
 
@@ -78,9 +92,18 @@ class MarkControls:
     def _on_box(self, event) -> None:
         if event.client is None:
             return  # set from the shared state, not by this user
+        if hidden(self.client, event.target):  # shown only while marked TI
+            event.target.value = not event.target.value  # a tab's change is always a flip
+            return
         self._set(self.acceptable())
 
     def _on_preset(self, event) -> None:
+        if hidden(self.client, event.target):
+            return
+        if event.target.value not in (ALL, EDIT_ONLY):
+            why = f"accepted: {ALL}, {EDIT_ONLY}"
+            refuse(self.client, refusal("fine", event.target.value, why))
+            return
         both = {self.change.old, self.change.new}
         chosen = (
             self.values if event.target.value == ALL else tuple(v for v in self.values if v in both)
@@ -120,12 +143,15 @@ class MarkControls:
         if self.preset is not None:
             self._acceptable = label.acceptable if ti else self.values
             left_out = tuple(v for v in self.values if v not in set(self._acceptable))
-            for handle in (self.preset, self.leave_out, self.put_back):
+            for handle in (self.preset, self.leave_out.handle, self.put_back.handle):
                 handle.visible = ti
-            self.leave_out.options = (NOT_CHOSEN, *self._acceptable)
-            self.leave_out.value = NOT_CHOSEN
-            self.put_back.options = (NOT_CHOSEN, *left_out)
-            self.put_back.value = NOT_CHOSEN
+            # what is offered first: a dropdown may take its first option at once
+            self._leave_offered = (NOT_CHOSEN, *self._acceptable)
+            self._back_offered = (NOT_CHOSEN, *left_out)
+            self.leave_out.handle.options = self._leave_offered
+            self.leave_out.set(NOT_CHOSEN)
+            self.put_back.handle.options = self._back_offered
+            self.put_back.set(NOT_CHOSEN)
 
 
 class FeedbackSection:
@@ -176,4 +202,6 @@ class FeedbackSection:
             self._holder = gui.add_folder("edited concepts")
             with self._holder:
                 for ch in edit.ordered:
-                    self.controls.append(MarkControls(gui, self.state, ch, world.space, self.warn))
+                    self.controls.append(
+                        MarkControls(self.client, self.state, ch, world.space, self.warn)
+                    )

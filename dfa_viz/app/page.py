@@ -2,7 +2,8 @@
 share), the compare panel and the 3D canvas, all drawn from the shared LoopState.
 
 Built in on_client_connect; every tab of a session subscribes to the same state, so what one
-tab does the others show at once.
+tab does the others show at once. Every value a tab sets is checked against what the page
+offered (dfa_viz.app.controls) before anything reads it.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import viser
 from dfa_viz.app import plots
 from dfa_viz.app.canvas import Canvas
 from dfa_viz.app.compare import ComparePanel
+from dfa_viz.app.controls import SEED, Checked, hidden, one_of
 from dfa_viz.app.feedback import FeedbackSection
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.sweep import SweepTab
@@ -30,12 +32,12 @@ FINETUNE, NEXT_TASK = "Continue: make variants and finetune", "Continue: another
 
 
 class Page:
-    def __init__(self, client: viser.ClientHandle, state: LoopState, worlds: tuple[str, ...]):
+    def __init__(self, client: viser.ClientHandle, state: LoopState):
         self.client, self.state = client, state
         self._lock = threading.RLock()
         self._commands: list = []
         self._keys_for: int | None = None
-        self._ties: tuple[str, ...] = ()
+        self._ties: tuple[str, ...] = ()  # the minimal edits offered, as the dropdown names them
         self._task_shown: int | None = None
         gui = client.gui
         client.gui.main_panel.dock_left()
@@ -43,16 +45,31 @@ class Page:
         self.header = gui.add_markdown("### DFA — diagnose, feedback, adapt")
         self.status = gui.add_markdown("")
         self.error = gui.add_markdown("", visible=False)
-        # what to do next, and the running job, stay at the top whatever is scrolled below
-        self.primary = gui.add_button("", icon=viser.Icon.ARROW_RIGHT, visible=False)
+        # what to do next, and the running job, stay at the top whatever is scrolled below: a
+        # button per next step, one shown at a time (a press names no label, so a press of a
+        # step that is over, arriving late, finds its own button hidden, never the next one's)
+        self.primary = {
+            label: gui.add_button(label, icon=viser.Icon.ARROW_RIGHT, visible=False)
+            for label in (USE_DEMO, ASK_EXPERT, FINETUNE, NEXT_TASK)
+        }
         self.job_bar = gui.add_progress_bar(0, animated=True, visible=False)
         self._stage_shown: str | None = None
 
         with gui.add_folder("1 · Task"):
-            self.world = gui.add_dropdown("world", worlds, initial_value=state.world_name)
-            shifts = shifts_of(state.world_name)
-            self.shift = gui.add_dropdown("shift", shifts, initial_value=default_shift(shifts))
-            self.seed = gui.add_number("seed", 0, min=0, step=1)
+            world = gui.add_dropdown("world", state.worlds, initial_value=state.world_name)
+            self.world = Checked(
+                world,
+                one_of(lambda: state.worlds),
+                client,
+                # the shifts on offer are the chosen world's own
+                on_change=lambda _: self._offer_shifts(self.world.value),
+            )
+            self._shifts = shifts_of(state.world_name)  # the shifts offered now
+            shift = gui.add_dropdown(
+                "shift", self._shifts, initial_value=default_shift(self._shifts)
+            )
+            self.shift = Checked(shift, one_of(lambda: self._shifts), client)
+            self.seed = Checked(gui.add_number("seed", 0, min=0, step=1), SEED, client)
             # disabled until their callbacks are attached (on_change enables them): a click
             # on a loaded machine while the page is still being built would be dropped
             self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY, disabled=True)
@@ -79,7 +96,8 @@ class Page:
         self.diag_folder = gui.add_folder("4 · Diagnose", visible=False)
         with self.diag_folder:
             self.diagnosis = gui.add_markdown("")
-            self.tie = gui.add_dropdown("minimal edit", ("—",), visible=False)
+            tie = gui.add_dropdown("minimal edit", ("—",), visible=False)
+            self.tie = Checked(tie, one_of(lambda: self._ties or ("—",)), client, self._on_tie)
             self.delta = gui.add_markdown("")
 
         self.feedback = FeedbackSection(client, state, self.warn)
@@ -124,6 +142,8 @@ class Page:
 
     def _guard(self, fn):
         def run(event) -> None:
+            if event.client is not None and hidden(self.client, event.target):
+                return  # a press the page does not offer now (a forged one, or late)
             try:
                 if fn(event) is False:
                     self.warn("a job is running; wait for it to finish")
@@ -138,14 +158,9 @@ class Page:
     def _wire(self) -> None:
         s = self.state
         self.load.on_click(
-            self._guard(lambda _: s.pick(self.world.value, self.shift.value, int(self.seed.value)))
+            self._guard(lambda _: s.pick(self.world.value, self.shift.value, self.seed.value))
         )
         self.next.on_click(self._guard(lambda _: s.next_task()))
-
-        @self.world.on_update
-        def _(_event) -> None:  # the shifts on offer are the chosen world's own
-            self._offer_shifts(self.world.value)
-
         self.failed.on_click(self._guard(lambda _: s.judge(True)))
         self.succeeded.on_click(self._guard(lambda _: s.judge(False)))
         self.use_demo.on_click(self._guard(lambda _: s.demonstrate(expert=False)))
@@ -153,22 +168,22 @@ class Page:
         self.undo.on_click(self._guard(lambda _: s.demo_undo()))
         self.clear.on_click(self._guard(lambda _: s.demo_clear()))
         self.finetune.on_click(self._guard(lambda _: s.finetune()))
-        self.primary.on_click(self._guard(self._on_primary))
+        for label, button in self.primary.items():
+            button.on_click(self._guard(lambda _, label=label: self._on_primary(label)))
         self.download.on_click(self._guard(self._download))
 
-        @self.tie.on_update
-        def _(event) -> None:
-            if event.client is None or self.tie.value not in self._ties:
-                return
-            self._guard(lambda _: s.select_tie(self._ties.index(self.tie.value)))(event)
+    def _on_tie(self, event) -> None:
+        if event.client is None or self.tie.value not in self._ties:
+            return  # set by the page, or the placeholder
+        index = self._ties.index(self.tie.value)
+        self._guard(lambda _: self.state.select_tie(index))(event)
 
     def _offer_shifts(self, world: str) -> None:
         shifts = shifts_of(world)
-        if tuple(self.shift.options) != shifts:
-            keep = self.shift.value in shifts
-            self.shift.options = shifts
-            if keep:
-                self.shift.value = self.shift.value
+        with self._lock:
+            if self._shifts != shifts:
+                self._shifts = shifts  # first: the dropdown may take its first option at once
+                self.shift.handle.options = shifts
 
     def _download(self, _event) -> None:
         path = self.state.write_recording()
@@ -181,8 +196,9 @@ class Page:
 
     # -- drawing ------------------------------------------------------------------------------
     def on_change(self, what: set[str]) -> None:
-        view = self.state.snapshot()
         with self._lock, self.client.atomic():
+            # read inside the lock: a notification drawn after another never draws older state
+            view = self.state.snapshot()
             self._draw_controls(view)
             if what & {"all", "stage", "marks", "demo"}:
                 self.feedback.refresh(view)
@@ -200,11 +216,11 @@ class Page:
         run, stage = view.record, view.stage
         if run is not None and id(run.task) != self._task_shown:
             self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
-            self.world.value = run.world
+            self.world.set(run.world)
             self._offer_shifts(run.world)
-            if run.shift in self.shift.options:  # not a failure the sweep found
-                self.shift.value = run.shift
-            self.seed.value = run.seed
+            if run.shift in self._shifts:  # not a failure the sweep found
+                self.shift.set(run.shift)
+            self.seed.set(run.seed)
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
         self.error.visible = bool(view.error)
@@ -232,7 +248,8 @@ class Page:
         self.expert.disabled = busy
         self.diag_folder.visible = run is not None and stage in ("diagnose", "feedback", "adapted")
         self.adapt_folder.visible = run is not None and stage in ("feedback", "adapted")
-        self.finetune.disabled = busy or (run is not None and bool(run.unmarked()))
+        unmarked = run is not None and bool(run.unmarked())
+        self.finetune.disabled = busy or view.finetuned or unmarked
         self.download.disabled = run is None
         self._draw_primary(view)
         if stage != self._stage_shown:  # give the demonstration image the room it needs
@@ -264,24 +281,24 @@ class Page:
         return None
 
     def _draw_primary(self, view: View) -> None:
-        action = self._next_action(view)
-        self.primary.visible = action is not None
-        if action is not None:
-            self.primary.label, enabled = action
-            self.primary.disabled = not enabled
+        label, enabled = self._next_action(view) or ("", False)
+        for name, button in self.primary.items():
+            button.visible = name == label
+            button.disabled = not (name == label and enabled)
 
-    def _on_primary(self, _event):
-        view = self.state.snapshot()
-        action = self._next_action(view)
-        if action is None or not action[1]:
-            return None
+    def _on_primary(self, label: str):
+        action = self._next_action(self.state.snapshot())
+        if action is None or action[0] != label:
+            raise UserError(f"{label}: that step is over")  # pressed as the page moved on
+        if not action[1]:
+            return False if self.state.busy else None
         s = self.state
         return {
             USE_DEMO: lambda: s.demonstrate(expert=False),
             ASK_EXPERT: lambda: s.demonstrate(expert=True),
             FINETUNE: s.finetune,
             NEXT_TASK: s.next_task,
-        }[action[0]]()
+        }[label]()
 
     def _draw_diagnosis(self, view: View) -> None:
         run = view.record
@@ -297,12 +314,12 @@ class Page:
                 f"{i + 1}. {c.edit}"
                 for i, c in enumerate(d.result.counterfactuals[: len(d.counterfactuals)])
             )
-        self.tie.visible = len(ties) > 1
+        self.tie.handle.visible = len(ties) > 1
         if ties != self._ties:
-            self._ties = ties
-            self.tie.options = ties or ("—",)
+            self._ties = ties  # first: the dropdown may take its first option at once
+            self.tie.handle.options = ties or ("—",)
         if ties:
-            self.tie.value = ties[d.tie]
+            self.tie.set(ties[d.tie])
 
     def _draw_adapt(self, view: View) -> None:
         run = view.record

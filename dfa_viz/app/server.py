@@ -2,12 +2,17 @@
 
 Only the page itself may drive a session: every HTTP request and WebSocket upgrade is checked
 by dfa_viz.app.address.PageGuard (Host and Origin) before viser sees it, and refused with 403.
+Every message a tab sends is one the page sends, or viser never sees it: a GUI update sets a
+control's value (a plain, finite one) and nothing else of it; what it sets is then checked
+against what the page offered (dfa_viz.app.controls).
 """
 
 from __future__ import annotations
 
 import contextlib
 import http
+import math
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -23,7 +28,7 @@ from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState, Policies
 from dfa_viz.configs import AdaptConfig, DemoArgs, ServeArgs
-from sim import check_world_name, world_names
+from sim import check_world_name
 from sim.core import UserError, check_shift
 
 
@@ -35,12 +40,18 @@ class App:
     state: LoopState
     url: str
     pages: dict[int, Page] = field(default_factory=dict)
+    stopped: bool = False
 
     def stop(self) -> None:
+        """Stop (once): the running job first (nothing is written after), then the tabs and
+        the server."""
+        if self.stopped:
+            return
+        self.stopped = True
+        self.state.close()
         for page in list(self.pages.values()):
             page.close()
         self.server.stop()
-        self.state.close()
 
 
 def open_state(
@@ -55,7 +66,9 @@ def open_state(
     """The loop state of a session folder (resumed), or of a new one under out/sessions/;
     `policy` (a policy.outside spec, with finetuned `weights` for it) is diagnosed in `world`
     instead of its base policy."""
-    check_world_name(world)  # an unknown world: one line, before anything is created
+    # the registered name (one world, one name: a "module:Class" names its world): an unknown
+    # world is one line, before anything is created
+    world = check_world_name(world)
     adapt.check()
     sess = (
         Session.open(session, world=world)
@@ -91,15 +104,37 @@ def _guarded(guard: PageGuard) -> Iterator[None]:
     original = websockets.asyncio.server.serve
     reported: list[str] = []
 
+    def report(line: str) -> None:
+        if len(reported) < _REPORTED and line not in reported:
+            reported.append(line)
+            print(f"dfa serve: {line}", flush=True)
+
     def check(connection, request):
         port = connection.local_address[1]
         why = guard.refusal(request.headers, port, upgrade="Upgrade" in request.headers)
         if not why:
             return None
-        if len(reported) < _REPORTED and why not in reported:
-            reported.append(why)
-            print(f"dfa serve: refused a request that is not from the page: {why}", flush=True)
+        report(f"refused a request that is not from the page: {why}")
         return connection.respond(http.HTTPStatus.FORBIDDEN, f"Forbidden: {why}\n")
+
+    def checking(handler):
+        """viser's connection handler, reading only the messages the page sends."""
+
+        async def handle(connection) -> None:
+            recv = connection.recv
+
+            async def recv_checked(*args, **kwargs):
+                while True:
+                    raw = await recv(*args, **kwargs)
+                    why = message_refusal(raw)
+                    if not why:
+                        return raw
+                    report(f"refused a message that is not the page's: {why}")
+
+            connection.recv = recv_checked
+            await handler(connection)
+
+        return handle
 
     class GuardedServe(original):
         def __init__(self, handler, *args, process_request=None, **kwargs):
@@ -109,7 +144,7 @@ def _guarded(guard: PageGuard) -> Iterator[None]:
                     return refused
                 return process_request(connection, request)
 
-            super().__init__(handler, *args, process_request=process, **kwargs)
+            super().__init__(checking(handler), *args, process_request=process, **kwargs)
 
     with _serve_lock:
         websockets.asyncio.server.serve = GuardedServe
@@ -117,6 +152,60 @@ def _guarded(guard: PageGuard) -> Iterator[None]:
             yield
         finally:
             websockets.asyncio.server.serve = original
+
+
+def message_refusal(raw: Any) -> str:
+    """Why a frame from a tab is not a message the page sends ("" when it is): not one of
+    viser's messages, or a GUI update that sets anything but a control's value, or a value
+    that is not plain (a bool, a string, a finite number, or a flat list of those). The
+    browser's page sends {"value": X} and nothing else; viser would set any other field of its
+    own record of the control (its callbacks, its props) from the message."""
+    if not isinstance(raw, bytes):
+        return "a text frame"
+    try:
+        message = viser.infra.Message.deserialize(raw)
+    except Exception as e:  # whatever a malformed frame makes the decoder raise
+        return f"not a message viser knows ({type(e).__name__})"
+    if type(message).__name__ == "GuiUpdateMessage":
+        updates = message.updates
+        if not isinstance(updates, dict) or set(updates) != {"value"}:
+            names = ", ".join(map(str, updates)) if isinstance(updates, dict) else "?"
+            return f"a control update that sets {names[:60]}, not only its value"
+        if not _plain(updates["value"]):
+            return "a control value that is not a bool, a string or a finite number"
+    return ""
+
+
+def _plain(value: Any, *, inner: bool = False) -> bool:
+    if isinstance(value, bool | str):
+        return True
+    if isinstance(value, int):
+        return abs(value) < 2**63
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, list | tuple) and not inner:
+        return all(_plain(v, inner=True) for v in value)
+    return False
+
+
+def _quiet_refusals(who: str) -> Callable:
+    """An event-loop exception handler: a tab's message that viser's own handling refuses
+    (a value of the wrong type for its control: int("abc")) is one line, not a traceback."""
+    reported: list[str] = []
+
+    def handler(loop, context) -> None:
+        task, error = context.get("future"), context.get("exception")
+        coro = task.get_coro() if hasattr(task, "get_coro") else None
+        if error is None or "handle_incoming_message" not in getattr(coro, "__qualname__", ""):
+            loop.default_exception_handler(context)
+            return
+        why = (str(error).splitlines() or [""])[0][:120]
+        line = f"{who}: refused a message from a tab: {type(error).__name__}: {why}"
+        if len(reported) < _REPORTED and line not in reported:
+            reported.append(line)
+            print(line, flush=True)
+
+    return handler
 
 
 def open_server(
@@ -138,6 +227,8 @@ def open_server(
     except BaseException:
         on_fail()
         raise
+    loop = server.get_event_loop()
+    loop.call_soon_threadsafe(loop.set_exception_handler, _quiet_refusals(who))
     bound = server.get_port()
     if chosen and bound != chosen:  # taken between the check and the bind
         if port is not None:
@@ -193,10 +284,7 @@ def start(
     )
     server.gui.configure_theme(show_share_button=False, brand_color=(28, 126, 214))
     app = App(server, state, url(host, bound))
-    worlds = tuple(n for n in world_names() if not n.endswith(":..."))
-    if state.world_name not in worlds:
-        worlds = (*worlds, state.world_name)
-    track_pages(server, app.pages, lambda client: Page(client, state, worlds))
+    track_pages(server, app.pages, lambda client: Page(client, state))
     print(f"dfa serve: the page is at {app.url}", flush=True)
     print(f"dfa serve: session {state.session.folder}", flush=True)
     return app
@@ -230,8 +318,9 @@ def demo(args: DemoArgs, *, block: bool = True) -> App:
     check_shift(args.shift)
     state = open_state(world=args.world, out=args.out, adapt=args.adapt)
     try:
-        print(f"dfa demo: preparing {args.world} / {args.shift} / seed {args.seed}…", flush=True)
-        state.pick(args.world, args.shift, args.seed)
+        world = state.world_name  # as the registry names it
+        print(f"dfa demo: preparing {world} / {args.shift} / seed {args.seed}…", flush=True)
+        state.pick(world, args.shift, args.seed)
         wait_idle(state)
         state.judge(True)
         state.demonstrate(expert=True)
@@ -245,15 +334,31 @@ def demo(args: DemoArgs, *, block: bool = True) -> App:
     return app
 
 
+class _Terminated(Exception):
+    """SIGTERM arrived (a service manager, `kill`): stop as for Ctrl-C."""
+
+
+def _terminate(_signum, _frame) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    raise _Terminated()
+
+
 def _block(app: App, *, stopped: str | None = None) -> None:
-    """Serve until Ctrl-C, then stop and print `stopped` (default: where the session is)."""
+    """Serve until Ctrl-C or SIGTERM, then stop (a running job is cancelled: its step is
+    offered again on resume) and print `stopped` (default: where the session is)."""
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminate) if main else None
     try:
         while True:
             time.sleep(3600)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, _Terminated):
         pass
     finally:
-        app.stop()
+        try:
+            app.stop()
+        finally:
+            if main and previous is not None:
+                signal.signal(signal.SIGTERM, previous)
         print(
             stopped or f"dfa serve: stopped; the session is saved in {app.state.session.folder}",
             flush=True,

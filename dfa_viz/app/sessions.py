@@ -10,9 +10,10 @@ A session folder holds:
 
 Every append is written, flushed and fsynced before `append` returns, so the page acknowledges
 an action only once it is on disk. Reading never writes: a malformed file raises SessionError
-naming the file and line and leaves the folder as it was. A last line cut short by a crash
-(no newline, not valid JSON) was never acknowledged; it is reported in `notes`, dropped, and
-cut off before the next append.
+naming the file and line and leaves the folder as it was. A line is written whole with its
+newline (sim.core.files.append_bytes: a write that fails, a full disk, is cut back), so a last
+line without its newline was cut short by a crash and never acknowledged, even where what is
+there parses: it is reported in `notes`, dropped, and cut off before the next append.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from dfa_viz.app import events
-from sim.core import Trajectory, UserError
+from sim.core import Trajectory, UserError, files
 
 LOG = "session.jsonl"
 LOCK = "session.lock"
@@ -73,22 +74,20 @@ def read_events(folder: Path) -> tuple[list[Entry], int, list[str]]:
     good_size = 0
     lines = raw.split(b"\n")
     for i, chunk in enumerate(lines, start=1):
-        last = i == len(lines)
-        if last and not chunk:
-            break  # the file ends with a newline, as it should
-        try:
-            text = chunk.decode("utf-8")
-            event = json.loads(text)
-        except (ValueError, RecursionError) as e:  # UnicodeDecodeError, JSONDecodeError, ...
-            if last:  # cut short by a crash: never acknowledged
+        if i == len(lines):  # after the last newline
+            if chunk:  # cut short by a crash: never acknowledged, whatever it holds
                 notes.append(
                     f"{path}:{i}: incomplete last line (the server stopped while writing it); "
                     "it is ignored and will be cut off"
                 )
-                break
+            break
+        try:
+            text = chunk.decode("utf-8")
+            event = json.loads(text)
+        except (ValueError, RecursionError) as e:  # UnicodeDecodeError, JSONDecodeError, ...
             raise SessionError(f"{path}:{i}: not a JSON line ({_why_not_json(e)})") from None
         entries.append((i, _event(path, i, event)))
-        good_size += len(chunk) + (0 if last else 1)
+        good_size += len(chunk) + 1
     if not entries:
         raise SessionError(f"{path}:1: empty session log; expected a session header line")
     head = entries[0][1]
@@ -100,14 +99,6 @@ def read_events(folder: Path) -> tuple[list[Entry], int, list[str]]:
         if isinstance(e, events.SessionStarted):
             raise SessionError(f"{path}:{line}: a second session header")
     return entries, good_size, notes
-
-
-def _fsync_dir(folder: Path) -> None:
-    fd = os.open(folder, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
 
 
 class Session:
@@ -146,7 +137,11 @@ class Session:
             folder.mkdir(parents=True, exist_ok=True)
             session = cls(folder, [], 0, [])
             session._acquire()
-            session.append(events.SessionStarted(world))
+            try:
+                session.append(events.SessionStarted(world))
+            except BaseException:
+                session.close()
+                raise
             session.world = world
             return session
         session._acquire()
@@ -186,23 +181,19 @@ class Session:
         return entries
 
     def append(self, event) -> int:
-        """Write one event line; returns its line number once it is flushed and fsynced."""
+        """Write one event line; returns its line number once it is flushed and fsynced.
+        A closed session (its server stopping, the folder released) takes nothing more."""
+        if self._lock_fd is None:
+            raise SessionError(f"{self.folder}: the session is closed; nothing more is written")
         doc = {"type": event.TYPE, **event.to_json(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")}
         line = (json.dumps(doc, separators=(",", ":"), allow_nan=False) + "\n").encode()
         with self._lock:
-            new = not self.path.exists()
-            with open(self.path, "wb" if new else "r+b") as f:
-                f.truncate(self._size)  # drop a torn tail left by a crash, if any
-                if self._size:
-                    f.seek(self._size - 1)
-                    if f.read(1) != b"\n":  # a complete last line without its newline
-                        line = b"\n" + line
-                f.seek(self._size)
-                f.write(line)
-                f.flush()
-                os.fsync(f.fileno())
-            if new:
-                _fsync_dir(self.folder)
+            if not self.path.exists():  # the header: the log is there whole, or not at all
+                files.write_bytes(self.path, line)
+            else:
+                if self.path.stat().st_size != self._size:
+                    os.truncate(self.path, self._size)  # a torn tail left by a crash
+                files.append_bytes(self.path, line)  # the whole line, fsynced, or nothing
             self._size += len(line)
             self.lines += 1
             return self.lines

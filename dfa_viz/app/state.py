@@ -8,8 +8,13 @@ fsynced) before it is applied; applying an event returns the next record, and re
 rebuilds the same record, so a restart with the same session resumes where it stopped.
 
 Thread-safety: every read and write of the state holds `self._lock`; long jobs run one at a
-time (dfa_viz.app.jobs); subscribers (the tabs) are called outside the lock with the set of
-things that changed.
+time (dfa_viz.app.jobs), each started under the lock that checked it may start (two tabs
+pressing the same button start one job); subscribers (the tabs) are called outside the lock
+with the set of things that changed. An event that would not apply is refused before it is
+written, so every line of the log replays. Once closed, nothing more is written.
+
+The values of an action (a world, shift, seed, tie, mark, number of sweep tasks) are checked
+here against what the page offers, whoever calls: a tab can send any value.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from pathlib import Path
 
 from dfa_viz.app import events as E
 from dfa_viz.app.demonstrate import DemoInput, input_for
-from dfa_viz.app.jobs import Jobs
+from dfa_viz.app.jobs import Cancelled, Jobs
 from dfa_viz.app.sessions import Session, SessionError
 from dfa_viz.app.view import View
 from dfa_viz.loop import AdaptConfig, RunRecord, adapt, diagnose, evaluate, start
@@ -33,19 +38,20 @@ from dfa_viz.recording import write_recording
 from policy import Policy, base_policy, failing_test_task, save_policy, training_demos
 from policy.outside import chosen_policy
 from search import SearchConfig
-from sim import get_world
+from sim import get_world, world_names
 from sim.core import (
     Label,
     UserError,
     World,
     check_seed,
-    check_shift,
     files,
     require_success,
 )
 
 Listener = Callable[[set[str]], None]
 LOSS_NOTIFY_S = 0.2  # at most this often while finetuning
+SWEEP_TASKS = (1, 500)  # the Sweep tab's range of training tasks
+STOP_WAIT_S = 10.0  # how long closing waits for a cancelled job to reach its next check
 
 
 class Policies:
@@ -97,6 +103,9 @@ class LoopState:
         self.adapt = adapt_config.check()
         self.policies = policies or Policies()
         self.world_name = session.world
+        worlds = tuple(n for n in world_names() if not n.endswith(":..."))
+        self.worlds = worlds if session.world in worlds else (*worlds, session.world)
+        """The worlds the page offers: the registered ones and the session's own."""
         self.record: RunRecord | None = None
         self.demo_input: DemoInput | None = None
         self.losses: list[float] = []  # live, while finetuning
@@ -104,6 +113,8 @@ class LoopState:
         self.content = 0  # bumps on every committed event (what the recording shows)
         self.recording: Path | None = None
         self._recorded = -1
+        self._closed = False
+        self._finetuned_with: tuple | None = None  # (feedback, config) of the last finetuning
         self.sweep = None  # the Sweep tab's last sweep (dfa_viz.sweep.run.PageSweep), unlogged
         self._lock = threading.RLock()
         self._record_lock = threading.Lock()
@@ -142,8 +153,14 @@ class LoopState:
                 on_error(f"{type(e).__name__}: {e}")
 
     def close(self) -> None:
-        """Stop taking input and release the session folder (a running job is abandoned; its
-        event was not written, so a restart redoes or offers it again)."""
+        """Stop: cancel the running job (it ends at its next check, or is abandoned after
+        STOP_WAIT_S; either way its event is never written, so a restart redoes or offers the
+        step again), stop taking input, and release the session folder. Nothing is written
+        after this returns."""
+        self.jobs.cancel()
+        self.jobs.idle(STOP_WAIT_S)
+        with self._lock:
+            self._closed = True
         self._inputs.put(None)
         self.session.close()
 
@@ -170,10 +187,12 @@ class LoopState:
                 traceback.print_exc()
 
     # -- events: written, then applied (live), or replayed ------------------------------------
-    def _apply(self, event, line: int, computed=None) -> None:
-        """Apply one event to the record (holding the lock); the task event also names the
+    def _take(self, event, record: RunRecord, line: int) -> None:
+        """Take the record an event gave (holding the lock); the task event also names the
         recording and makes a fresh demonstration input when judged failed."""
-        self.record = E.apply(self.record, event, self._rebuild, computed)
+        self.record = record
+        if isinstance(event, E.Finetuned):
+            self._finetuned_with = (event.feedback, event.config)
         if isinstance(event, E.TaskLoaded):
             self.world_name = event.world
             self.demo_input = None
@@ -191,7 +210,7 @@ class LoopState:
         for line, event in self.session.replay():
             try:
                 with self._lock:
-                    self._apply(event, line)
+                    self._take(event, E.apply(self.record, event, self._rebuild), line)
             except UserError as e:
                 if isinstance(e, SessionError):
                     raise
@@ -200,11 +219,25 @@ class LoopState:
             self.jobs.start("search", self._search_job)  # the search was cut off: run it again
 
     def _commit(self, event, computed=None) -> None:
-        """Append the event durably, then apply it (all under the state lock)."""
+        """Apply the event to a copy (an event that does not apply is refused, unwritten),
+        append it durably, then take the new record; all under the state lock, and nothing
+        once the state is closed."""
         with self._lock:
+            if self._closed:
+                raise Cancelled()
+            record = E.apply(self.record, event, self._rebuild, computed)
             line = self.session.append(event)
-            self._apply(event, line, computed)
+            self._take(event, record, line)
             self.content += 1
+
+    def _start(self, name: str, job: Callable[[], None], text: str) -> bool:
+        """Start a job (False if one runs). Callers check that it may start and start it under
+        the state lock: of two tabs pressing the same button at once, one starts the job and
+        the other is refused or told why not."""
+        with self._lock:
+            if self._closed:
+                raise Cancelled()
+            return self.jobs.start(name, job, text)
 
     # -- what the tabs draw -------------------------------------------------------------------
     def snapshot(self) -> View:
@@ -228,6 +261,7 @@ class LoopState:
                 self.recording,
                 self.session.folder,
                 self.adapt,
+                self.finetuned(),
             )
 
     def demo_canvas(self):
@@ -253,21 +287,36 @@ class LoopState:
         return self.jobs.current is not None
 
     # -- user actions -------------------------------------------------------------------------
+    def offered(self, world: str) -> World:
+        """The world, if the page offers it; else a UserError (nothing is built for it)."""
+        if world not in self.worlds:
+            raise UserError(f"no world {world!r} here; accepted: {', '.join(self.worlds)}")
+        return get_world(world)
+
+    def check_task(self, world: str, shift: str, seed: int) -> World:
+        """The world of a test task the page offers: one of its worlds, a shift of that world
+        and a seed from 0 to MAX_SEED; else a UserError saying what is accepted."""
+        w = self.offered(world)
+        if shift not in w.shifts:
+            accepted = ", ".join(w.shifts) or "none (it has no test tasks)"
+            raise UserError(f"{world} has no shift {shift!r}; accepted: {accepted}")
+        check_seed(seed)
+        return w
+
     def pick(self, world: str, shift: str, seed: int) -> bool:
         """Load the failing test task of (world, shift, seed) and roll the base policy out."""
+        w = self.check_task(world, shift, seed)
 
         def job() -> None:
-            w = get_world(world)
-            check_shift(shift)
-            check_seed(seed)
             self.jobs.progress(0.1, f"loading the {world} base policy and finding the test task")
             policy = self.policies.get(w)
             task, _ = failing_test_task(w, policy, shift, seed)
+            self.jobs.check()
             record = start(w, policy, task, shift=shift, seed=seed)
             self._commit(E.TaskLoaded(world, shift, seed, task.seed), record)
             self._notify({"stage"})
 
-        return self.jobs.start("task", job, f"finding a {shift} task for seed {seed}")
+        return self._start("task", job, f"finding a {shift} task for seed {seed}")
 
     def next_task(self) -> bool:
         with self._lock:
@@ -282,11 +331,14 @@ class LoopState:
     def run_sweep(self, world: str, tasks: int) -> bool:
         """Sweep every single concept edit of `world`'s policy over `tasks` training tasks
         (the Sweep tab); the result is kept for the session's tabs, not logged."""
+        w = self.offered(world)
+        low, high = SWEEP_TASKS
+        if isinstance(tasks, bool) or not isinstance(tasks, int) or not low <= tasks <= high:
+            raise UserError(f"a sweep takes {low} to {high} tasks, not {tasks!r}")
 
         def job() -> None:
             from dfa_viz.sweep.run import page_sweep
 
-            w = get_world(world)
             self.jobs.progress(0.05, f"loading the {world} policy")
             policy = self.policies.get(w)
 
@@ -298,16 +350,17 @@ class LoopState:
                 self.sweep = shown
             self._notify({"sweep"})
 
-        return self.jobs.start("sweep", job, f"sweeping {tasks} {world} tasks")
+        return self._start("sweep", job, f"sweeping {tasks} {world} tasks")
 
     def load_failure(self, world: str, example) -> bool:
         """Load a failure the sweep found (search.sweep.Example: a training task and one
         edit) as the task to diagnose."""
 
+        w = self.offered(world)
+
         def job() -> None:
             from search.sweep import failure_task
 
-            w = get_world(world)
             self.jobs.progress(0.1, f"rolling the {world} policy out on task {example.seed}")
             policy = self.policies.get(w)
             task = failure_task(w, example)
@@ -316,7 +369,7 @@ class LoopState:
             self._commit(event, record)
             self._notify({"stage"})
 
-        return self.jobs.start("task", job, f"loading {example.edit} on task {example.seed}")
+        return self._start("task", job, f"loading {example.edit} on task {example.seed}")
 
     def judge(self, failed: bool) -> None:
         with self._lock:
@@ -358,16 +411,17 @@ class LoopState:
             world = get_world(rec.world)
             make = (lambda: world.demonstrate(rec.task)) if expert else d.trajectory
 
-        def job() -> None:
-            self.jobs.progress(0.0, "saving the demonstration")
-            demo = make()
-            require_success(rec.task, demo, source=f"the {source} demonstration")
-            name = self.session.save_trajectory(demo, "demo")
-            self._commit(E.Demonstrated(name, source), demo)
-            self._notify({"stage"})
-            self._search_job()
+            def job() -> None:
+                self.jobs.progress(0.0, "saving the demonstration")
+                demo = make()
+                require_success(rec.task, demo, source=f"the {source} demonstration")
+                self.jobs.check()
+                name = self.session.save_trajectory(demo, "demo")
+                self._commit(E.Demonstrated(name, source), demo)
+                self._notify({"stage"})
+                self._search_job()
 
-        return self.jobs.start("search", job, "saving the demonstration")
+            return self._start("search", job, "saving the demonstration")
 
     def _search_job(self) -> None:
         with self._lock:
@@ -397,13 +451,17 @@ class LoopState:
             rec = E.need(self.record, "feedback", "adapted")
             if index == rec.diagnosis.tie:
                 return
-            self._commit(E.TieChosen(index))
+            self._commit(E.TieChosen(index))  # an index out of range: refused, unwritten
         self._notify({"stage"})
 
     def mark(self, slot: str, concept: str, *, relevant: bool, acceptable: tuple[str, ...]) -> None:
         """Mark an edited concept TR, or TI with the instantiations that are acceptable."""
         with self._lock:
             rec = E.need(self.record, "feedback", "adapted")
+            edited = [(c.slot, c.concept) for c in rec.edit.ordered] if rec.edit else []
+            if (slot, concept) not in edited:  # e.g. a tab still showing another tie's marks
+                shown = ", ".join(f"{s}.{c}" for s, c in edited) or "none"
+                raise UserError(f"{slot}.{concept} is not an edited concept here: {shown}")
             current = rec.label(slot, concept)
             if (
                 current is not None
@@ -415,15 +473,30 @@ class LoopState:
             self._commit(E.Marked(label))
         self._notify({"marks"})
 
+    def finetuned(self) -> bool:
+        """Whether the task was finetuned with the marks it has now (and these settings)."""
+        with self._lock:
+            rec = self.record
+            done = rec is not None and rec.adaptation is not None
+            return done and self._finetuned_with == (rec.feedback, self.adapt)
+
+    def _finetunable(self) -> RunRecord:
+        """The record to finetune: every edited concept marked, not finetuned with these marks
+        yet (the same seed and marks would give the same policy again)."""
+        rec = E.need(self.record, "feedback", "adapted")
+        missing = rec.unmarked()
+        if missing:
+            raise UserError(f"mark {', '.join(missing)} as TI or TR first")
+        if self.finetuned():
+            raise UserError("finetuned with these marks already; change a mark to finetune again")
+        return rec
+
     def finetune(self) -> bool:
         """Augment over the TI marks, finetune, evaluate; refused while a job runs."""
         with self._lock:
-            rec = E.need(self.record, "feedback", "adapted")
-            missing = rec.unmarked()
-            if missing:
-                raise UserError(f"mark {', '.join(missing)} as TI or TR first")
             if self.busy:
                 return False
+            rec = self._finetunable()
         world = get_world(rec.world)
         if self.policies.get(world).net is None:
             raise UserError(
@@ -438,6 +511,7 @@ class LoopState:
             last = [0.0]
 
             def on_loss(step: int, loss: float) -> None:
+                self.jobs.check()  # stopping: end here
                 self.losses.append(loss)
                 now = time.monotonic()
                 if now - last[0] > LOSS_NOTIFY_S or step + 1 == steps:
@@ -468,6 +542,7 @@ class LoopState:
             if world.benchmark:
                 n = config.finetuning.n_eval
                 evaluation = evaluate(world, base, adaptation.policy, rec.task, n=n, seed=rec.seed)
+            self.jobs.check()
             rollout_file = self.session.save_trajectory(adaptation.rollout, "finetuned")
             policy_dir = self.session.next_name("policy")
             save_policy(
@@ -490,7 +565,11 @@ class LoopState:
             self.jobs.progress(1.0, "writing the recording")
             self.write_recording()
 
-        return self.jobs.start("finetune", job, "augmenting the demonstration")
+        with self._lock:  # checked again and started at once: of two tabs, one starts it
+            if self.busy:
+                return False
+            rec = self._finetunable()
+            return self._start("finetune", job, "augmenting the demonstration")
 
     # -- recording ----------------------------------------------------------------------------
     def write_recording(self) -> Path | None:

@@ -13,8 +13,9 @@ import threading
 import numpy as np
 import viser
 
-from dfa_viz.app.canvas import SIZE, Canvas
-from dfa_viz.app.state import LoopState
+from dfa_viz.app.canvas import SIZE, Canvas, ray
+from dfa_viz.app.controls import Checked, whole
+from dfa_viz.app.state import SWEEP_TASKS, LoopState
 from sim.core import UserError
 
 DEFAULT_TASKS = 20
@@ -52,7 +53,9 @@ class SweepTab:
         gui = client.gui
         with panel.add_tab("Sweep", viser.Icon.GRID_DOTS):
             gui.add_markdown(INTRO)
-            self.tasks = gui.add_number("tasks", DEFAULT_TASKS, min=1, max=500, step=1)
+            low, high = SWEEP_TASKS
+            tasks = gui.add_number("tasks", DEFAULT_TASKS, min=low, max=high, step=1)
+            self.tasks = Checked(tasks, whole(low, high), client)
             self.run = gui.add_button("Run sweep", icon=viser.Icon.PLAYER_PLAY)
             self.run.on_click(self._on_run)
             self.pick = gui.add_checkbox(PICK, False, visible=False)
@@ -65,7 +68,7 @@ class SweepTab:
 
     def _on_run(self, _event) -> None:
         try:
-            if not self.state.run_sweep(self.world(), int(self.tasks.value)):
+            if not self.state.run_sweep(self.world(), self.tasks.value):
                 self.warn("a job is running; wait for it to finish")
         except UserError as e:
             self.warn(str(e))
@@ -121,10 +124,8 @@ class SweepTab:
 
     def _on_click(self, event) -> None:
         shown = self._shown
-        if shown is None or not self.pick.value:
-            return
-        o, d = np.asarray(event.ray_origin), np.asarray(event.ray_direction)
-        if abs(d[2]) < 1e-9:
+        o, d = ray(event)
+        if shown is None or not self.pick.value or o is None:
             return
         hit = o + (PLANE_Z - o[2]) / d[2] * d  # (3,) on the heatmap's plane
         square, (x0, y0) = padded(shown.heatmap.image)

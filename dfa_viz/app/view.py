@@ -35,3 +35,5 @@ class View:
     recording: Path | None
     session: Path
     adapt: AdaptConfig
+    finetuned: bool = False
+    """The task was finetuned with the marks it has now: finetuning again would repeat it."""
