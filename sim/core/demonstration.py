@@ -21,7 +21,24 @@ def check_demonstration(
 ) -> Trajectory:
     """`demo`'s actions replayed from the task's scene, once the file has passed every check;
     a UserError naming `source` and what is accepted otherwise."""
-    a = demo.actions
+    a = check_actions(world, demo.actions, source=source)
+    frames = demo.observations.shape[1:]
+    if frames != world.obs_shape:
+        raise UserError(
+            f"{source}: frames of shape {frames}, but {world.name} renders {world.obs_shape}"
+        )
+    other = sorted({s.world for s in demo.scenes} - {world.name})
+    if other:
+        raise UserError(f"{source}: its scenes belong to {', '.join(other)}, not {world.name}")
+    if demo.scenes[0] != task.scene:
+        raise UserError(f"{source}: the demonstration starts from another scene than the task")
+    return world.replay(task, a)
+
+
+def check_actions(world: World, a: np.ndarray, *, source: str) -> np.ndarray:
+    """The actions of a demonstration from outside, as the world takes them (int64 (T,) or
+    float32 (T, A), one per step of the horizon, finite); a UserError naming `source` and what
+    is accepted otherwise."""
     if world.discrete:
         want = f"integer actions in 0..{world.action_dim - 1} of shape ({world.horizon},)"
         ok = (
@@ -39,17 +56,7 @@ def check_demonstration(
         raise UserError(
             f"{source}: actions of dtype {a.dtype}, shape {a.shape}; {world.name} needs {want}"
         )
-    frames = demo.observations.shape[1:]
-    if frames != world.obs_shape:
-        raise UserError(
-            f"{source}: frames of shape {frames}, but {world.name} renders {world.obs_shape}"
-        )
-    other = sorted({s.world for s in demo.scenes} - {world.name})
-    if other:
-        raise UserError(f"{source}: its scenes belong to {', '.join(other)}, not {world.name}")
-    if demo.scenes[0] != task.scene:
-        raise UserError(f"{source}: the demonstration starts from another scene than the task")
-    return world.replay(task, a.astype(np.int64 if world.discrete else np.float32))
+    return a.astype(np.int64 if world.discrete else np.float32)
 
 
 def require_success(task: Task, demo: Trajectory, *, source: str = "the demonstration") -> None:
