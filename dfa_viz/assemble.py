@@ -63,10 +63,27 @@ def parse_labels(world: World, labels: tuple[str, ...]) -> dict[tuple[str, str],
 
 def load_demo(world: World, task: Task, path: Path) -> Trajectory:
     """A user-given demonstration, checked against the task it should demonstrate and replayed
-    (sim.core.check_demonstration); one that does not succeed is refused."""
-    demo = check_demonstration(world, task, Trajectory.load(path), source=str(path))
-    require_success(task, demo, source=str(path))
+    (sim.core.check_demonstration; an episode of a LeRobotDataset, lerobot:DIR[:episode=N]:
+    sim.lerobot.demo); one that does not succeed is refused."""
+    from sim.lerobot import demo as lerobot
+
+    if lerobot.is_spec(path):
+        spec = lerobot.parse(path)
+        demo, source = lerobot.demonstration(world, task, spec), spec.source
+    else:
+        demo = check_demonstration(world, task, Trajectory.load(path), source=str(path))
+        source = str(path)
+    require_success(task, demo, source=source)
     return demo
+
+
+def demo_scene(path: Path):
+    """The first scene of a user-given demonstration (the task of a world without test tasks)."""
+    from sim.lerobot import demo as lerobot
+
+    if lerobot.is_spec(path):
+        return lerobot.first_scene(lerobot.parse(path))
+    return Trajectory.load(path).scenes[0]
 
 
 def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path, float]:
@@ -131,6 +148,10 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
         check_method(args.saliency)
     if world.benchmark and args.shift not in world.shifts:
         world.test_task(args.shift, args.seed)  # its one line, before anything is spent
+    if args.lerobot is not None:
+        from sim.lerobot.writer import check_out
+
+        check_out(args.lerobot)  # its one line, before anything is spent
     overrides = parse_labels(world, args.label)
     learned = None if args.prior is None else LearnedPrior.load(args.prior, world)
     progress = progress and sys.stderr.isatty()  # a status line and bars are a terminal's
@@ -196,7 +217,7 @@ def _run(args: RunArgs, world: World, phase: Phases, overrides, learned, progres
             drawn.close()
         demo = load_demo(world, task, args.demo) if args.demo is not None else None
     elif args.demo is not None:  # no test tasks: the demonstration's first scene is the task
-        task = world.task_for(Trajectory.load(args.demo).scenes[0])
+        task = world.task_for(demo_scene(args.demo))
         demo = load_demo(world, task, args.demo)
     else:
         raise UserError(
@@ -259,6 +280,14 @@ def _run(args: RunArgs, world: World, phase: Phases, overrides, learned, progres
     if args.saliency is not None:
         layer = failed_saliency(world, policy, record, args.saliency)
     write_recording(path, world, record, saliency=layer)
+    if args.lerobot is not None:
+        from dfa_viz.lerobot.export import export_run
+        from policy import training_demos
+
+        phase("writing the LeRobot dataset")
+        known = training_demos(world) if world.benchmark and record.adaptation else ()
+        exported = export_run(args.lerobot, world, record, known=known)
+        record = replace(record, dataset=str(exported.written.root))
     return record
 
 

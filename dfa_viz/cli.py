@@ -1,6 +1,7 @@
 """The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
 
     dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
+    dfa export lerobot | view
     dfa experiment explain
     dfa study new | study serve | study analyse
 
@@ -29,6 +30,7 @@ from dfa_viz.configs import (
     CheckWorldArgs,
     DemoArgs,
     ExplainArgs,
+    ExportArgs,
     NewStudyArgs,
     PriorArgs,
     Q2Args,
@@ -37,6 +39,7 @@ from dfa_viz.configs import (
     ServeStudyArgs,
     SweepArgs,
     TrainArgs,
+    ViewArgs,
     WorldsArgs,
 )
 from sim.core import UserError, files
@@ -60,6 +63,8 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[DemoArgs, tyro.conf.subcommand("demo")],
     Annotated[ServeArgs, tyro.conf.subcommand("serve")],
     Annotated[SweepArgs, tyro.conf.subcommand("sweep")],
+    Annotated[ExportArgs, tyro.conf.subcommand("export")],
+    Annotated[ViewArgs, tyro.conf.subcommand("view")],
     Annotated[
         Experiment,
         tyro.conf.subcommand(
@@ -202,6 +207,20 @@ def sweep(args: SweepArgs) -> None:
         console.print(f"  {path}", highlight=False)
 
 
+def export(args: ExportArgs) -> None:
+    from dfa_viz.lerobot.export import export as export_dataset
+
+    print(export_dataset(args).summary())
+
+
+def view(args: ViewArgs) -> None:
+    from dfa_viz.lerobot.view import write_view
+
+    out = args.out or Path("recordings") / files.safe_name(f"{args.dataset.resolve().name}.rrd")
+    viewed = write_view(args.dataset, out, episodes=args.episodes, camera=args.camera)
+    print(f"{viewed.path}: {viewed.episodes} episodes, {viewed.frames} frames; open it with rerun")
+
+
 def study(args) -> None:
     from dfa_viz.study import cli as study_cli
 
@@ -224,13 +243,16 @@ HANDLERS = {
     Q2Args: experiment,
     ExplainArgs: explain,
     SweepArgs: sweep,
+    ExportArgs: export,
+    ViewArgs: view,
     NewStudyArgs: study,
     ServeStudyArgs: study,
     AnalyseStudyArgs: study,
 }
 
 
-OUTPUT_FILES = (BenchArgs, PriorArgs)  # their --out names a file; every other --out, a folder
+# their --out names a file; every other --out, a folder
+OUTPUT_FILES = (BenchArgs, PriorArgs, ViewArgs)
 
 
 def check_output(config) -> None:

@@ -121,8 +121,10 @@ class RunArgs:
     """Finetuned weights dfa saved for --policy (a folder the page wrote, policy-NNNN): loaded
     into that policy once its file is shown to be the one they were finetuned from."""
     demo: Path | None = None
-    """A demonstration .npz (a saved Trajectory) instead of the scripted expert's; for a world
-    without test tasks, the demonstration's first scene is the task."""
+    """A demonstration .npz (a saved Trajectory), or an episode of a LeRobotDataset
+    (lerobot:DIR[:episode=N][:camera=NAME], episode 0 unless named), instead of the scripted
+    expert's; replayed, and its frames must be the world's. For a world without test tasks,
+    the demonstration's first scene is the task (a dataset must be one dfa exported)."""
     max_size: int = 2
     """The largest edit the search tries (concept changes)."""
     prior: Path | None = None
@@ -134,6 +136,9 @@ class RunArgs:
     integrated_gradients, occlusion or kernel_shap (the project's own image policies only)."""
     out: Path = Path("recordings")
     """Folder for the recording."""
+    lerobot: Path | None = None
+    """Also write the run's trajectories (demonstration, variants, counterfactuals, failed and
+    finetuned rollouts) as a LeRobotDataset v3.0 in this folder (see `dfa export lerobot`)."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
     """How the policy is adapted (the finetuning experiment's defaults)."""
 
@@ -450,3 +455,56 @@ class AnalyseStudyArgs:
 
     folder: tyro.conf.Positional[Path]
     """The study folder."""
+
+
+@dataclass(frozen=True)
+class ExportArgs:
+    """Write dfa's robot-learning data as a LeRobotDataset v3.0 folder, the dataset format
+    LeRobot trains from (meta/info.json, parquet tables, AV1 videos for camera frames).
+
+    `dfa export lerobot --from FOLDER --out DIR` reads a page session (session.jsonl), a
+    `dfa sweep` folder (sweep.csv) or a `dfa experiment q2` results folder (runs.csv) and
+    writes one episode per trajectory: the demonstration, each variant finetuned on, the
+    counterfactual rollouts, the failed rollout and the finetuned one (a sweep: each example
+    failure and the expert's demonstration of it; q2: each run's demonstration, variants and
+    failed rollout), task = the instruction, with dfa's columns dfa.role, dfa.edit,
+    dfa.concept, dfa.label, dfa.action_distance, dfa.scene and dfa.run. `dfa run --lerobot DIR`
+    writes one run's. Read it back with `dfa view DIR` or `--demo lerobot:DIR:episode=N`.
+    """
+
+    format: tyro.conf.Positional[Literal["lerobot"]]
+    """The dataset format (LeRobotDataset v3.0)."""
+    source: Annotated[Path, tyro.conf.arg(name="from", metavar="FOLDER")]
+    """A page session folder, a `dfa sweep` output folder or a q2 results folder."""
+    out: Path
+    """The dataset folder: new, empty, or a dataset this replaces once the new one is whole."""
+    world: str | None = None
+    """Only this world's runs (a session or q2 folder); a sweep's world (default: the sweep
+    folder's name, as `dfa sweep` names it)."""
+    policy: str | None = None
+    """The policy the session or sweep ran, when not the base policy (as `dfa run --policy`)."""
+    weights: Path | None = None
+    """Finetuned weights for --policy (as `dfa run --weights`)."""
+    fps: int = 10
+    """Frames per second written in the dataset (its timestamps are frame / fps)."""
+    frames: Literal["auto", "image", "video"] = "auto"
+    """auto: AV1 video for a camera's frames (tabletop, Fetch), PNG images for frames drawn to
+    the pixel (nav2d, doorkey, MiniGrid: lossless); or force one."""
+
+
+@dataclass(frozen=True)
+class ViewArgs:
+    """Write every episode of a LeRobotDataset (anyone's, or one dfa exported) into one Rerun
+    recording: the episodes side by side on one `step` timeline, a tab per episode (its frames,
+    one plot per action dimension, its task and dfa's columns) after a tab of all of them (a
+    grid of frames, every episode's actions per dimension). Open it with `rerun FILE`."""
+
+    dataset: tyro.conf.Positional[Path]
+    """The dataset folder (meta/info.json, data/, videos/)."""
+    out: Path | None = None
+    """The .rrd to write; default recordings/<dataset folder name>.rrd."""
+    episodes: tuple[int, ...] = ()
+    """Only these episodes (default: all, up to 500)."""
+    camera: str | None = None
+    """The image or video feature to show (default the first), e.g. main or
+    observation.images.main."""

@@ -110,6 +110,8 @@ class RunRecord:
     adaptation: Adaptation | None = None
     evaluation: Evaluation | None = None
     recording: str | None = None
+    dataset: str | None = None
+    """The LeRobotDataset the run was also written as (`dfa run --lerobot`)."""
 
     @property
     def stage(self) -> str:
@@ -177,6 +179,7 @@ class RunRecord:
             "success_all_before": ev.before.on_all if ev else None,
             "success_all_after": ev.after.on_all if ev else None,
             "recording": self.recording,
+            "dataset": self.dataset,
         }
 
 

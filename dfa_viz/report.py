@@ -53,4 +53,6 @@ def format_report(r: RunRecord) -> str:
             f"{ev.before.on_all:.0%} -> {ev.after.on_all:.0%})"
         )
     lines.append(f"  recording: {r.recording}")
+    if r.dataset is not None:
+        lines.append(f"  LeRobot dataset: {r.dataset}")
     return "\n".join(lines)
