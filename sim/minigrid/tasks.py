@@ -158,6 +158,11 @@ def addable(world, scene: Scene) -> bool:
     return (world.distractor, PRESENCE) not in relevant
 
 
+def roomy(world, scene: Scene) -> bool:
+    """True when the scene has a free cell off the expert's path for the extra ball."""
+    return bool(set(free_cells(world, scene)) - path_cells(world, scene))
+
+
 def test_task(world, shift: str, seed: int) -> Task:
     """A shifted task of kind `shift` (world.shifts), from np.random.default_rng([seed, 2])."""
     check_shift(shift)

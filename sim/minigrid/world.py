@@ -173,6 +173,10 @@ class MiniGridWorld(Benchmark):
             )
         if not any(TK.addable(self, s) for s in scenes):
             lacks["distractor_ti"] = "no TI distractor: the mission takes any ball"
+        elif not any(TK.roomy(self, s) for s in scenes):
+            lacks["distractor_ti"] = "no free cell off the expert's path for an extra ball"
+        if not any(TK.free_cells(self, s) for s in scenes):
+            lacks["other"] = "no free cell the agent can reach to start from instead"
         return tuple(s for s in SHIFTS if s not in lacks), lacks
 
     def _make(self):

@@ -130,3 +130,15 @@ def test_a_distractor_never_takes_a_named_colour():
         assert task.scene.obj(w.distractor).value("colour") != "red"
         assert "red" not in task.reward.allowed_values(w.distractor, "colour")
         assert "no other red ball" in task.reward.instruction
+
+
+def test_a_corridor_with_no_room_offers_only_the_shifts_it_can_make():
+    """KeyCorridorS3R1's agent starts where no free cell is in reach and every free cell is on
+    the expert's path: no extra ball and no other start; the recolouring shift still works,
+    and asking for the others says why in one line."""
+    w = world("MiniGrid-KeyCorridorS3R1-v0")
+    assert w.shifts == ("object_ti",)
+    assert w.test_task("object_ti", 0).shift == "object_ti"
+    for shift, why in (("distractor_ti", "off the expert's path"), ("other", "start from")):
+        with pytest.raises(UserError, match=f"makes no {shift} tasks .*{why}.*accepted: object_ti"):
+            w.test_task(shift, 0)
