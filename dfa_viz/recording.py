@@ -13,6 +13,7 @@ from dfa_viz.charts import rgb
 from dfa_viz.layout import action_labels, blueprint
 from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
+from dfa_viz.report import evaluation_sentence
 from dfa_viz.rrd import RrdFile, recording_id, send_blueprint
 from search import Candidate, SearchResult, distance_to_demo
 from sim.core import Edit, Feedback, Trajectory, World
@@ -53,12 +54,7 @@ def task_text(record: RunRecord) -> str:
         )
     ev = record.evaluation
     if ev is not None:
-        n = len(ev.before.shifted)
-        lines.append(
-            f"- success on {n} fresh tasks with the shift: {ev.before.on_shift:.0%} → "
-            f"{ev.after.on_shift:.0%}; on {len(ev.before.overall)} from all the user wants: "
-            f"{ev.before.on_all:.0%} → {ev.after.on_all:.0%}"
-        )
+        lines.append(f"- {evaluation_sentence(ev, '→')}")
     return "\n".join(lines)
 
 

@@ -2,8 +2,19 @@
 
 from __future__ import annotations
 
-from dfa_viz.loop import RunRecord
+from dfa_viz.loop import Evaluation, RunRecord
 from sim import get_world
+
+
+def evaluation_sentence(ev: Evaluation, arrow: str = "->") -> str:
+    """The evaluation in one sentence: success before and after adapting, on the fresh tasks
+    with the shift and on those from all the user wants (the report's and the recording's)."""
+    return (
+        f"success on {len(ev.before.shifted)} fresh tasks with the shift: "
+        f"{ev.before.on_shift:.0%} {arrow} {ev.after.on_shift:.0%} (on "
+        f"{len(ev.before.overall)} from all you want: {ev.before.on_all:.0%} {arrow} "
+        f"{ev.after.on_all:.0%})"
+    )
 
 
 def format_report(r: RunRecord) -> str:
@@ -46,12 +57,7 @@ def format_report(r: RunRecord) -> str:
             f"{len(ad.augmented)} variants{loss}"
         )
     if ev is not None:
-        n = len(ev.before.shifted)
-        lines.append(
-            f"  success on {n} fresh tasks with the shift: {ev.before.on_shift:.0%} -> "
-            f"{ev.after.on_shift:.0%} (on {len(ev.before.overall)} from all you want: "
-            f"{ev.before.on_all:.0%} -> {ev.after.on_all:.0%})"
-        )
+        lines.append(f"  {evaluation_sentence(ev)}")
     lines.append(f"  recording: {r.recording}")
     if r.dataset is not None:
         lines.append(f"  LeRobot dataset: {r.dataset}")
