@@ -45,9 +45,13 @@ class StudyCheck:
 
     @staticmethod
     def correct(truth: dict, selected, none: bool) -> bool:
-        """The paper's rule: every required concept ticked; "none" for an other shift."""
+        """The paper's rule: an object shift's changed concept ticked; for a distractor, any
+        concept of the added object (its presence or a look); "none" for an other shift."""
         if truth["kind"] == "other":
             return none
+        if truth["kind"] == "distractor":
+            added = truth["cause"].partition(".")[0]
+            return not none and any(c.partition(".")[0] == added for c in selected)
         return not none and all(c in selected for c in truth["required"])
 
     @staticmethod

@@ -1,9 +1,13 @@
 """`dfa study analyse DIR`: the study's answers scored and compared, beside the paper's.
 
 Scoring (the paper's rule): an object shift is named right when the answer ticks the changed
-concept of the changed object; a distractor when it ticks every look the new object shows (its
-colour and shape; its presence where it has no looks); an `other` shift when the answer is
-"the cause is not among these". truth.json says which concepts each task needs.
+concept of the changed object; a distractor when it names the new object (its presence, the
+planted cause, or any of its looks); an `other` shift when the answer is "the cause is not
+among these". truth.json says the cause and the concepts each task needs. Beside "includes the
+cause", each answer is scored for an exact match (it ticks the cause and nothing else: the
+changed concept; the distractor's presence or exactly its looks; for `other`, "none" alone) and
+its precision (the share of its ticks that name the cause), so that ticking everything does not
+score as knowing.
 
     accuracy    per world x shift kind x condition: right / answered, standard error
                 sqrt(p (1 - p) / n) (the paper's error bars)
@@ -46,6 +50,8 @@ COLUMNS = (
     "none",
     "matters",
     "correct",
+    "exact",
+    "precision",
     "duration_s",
 )
 WORLD_ORDER = PAPER_WORLDS
@@ -64,11 +70,40 @@ def paper_accuracy(world: str, kind: str, condition: str) -> float | None:
     return PAPER[kind][condition][WORLD_ORDER.index(world)]
 
 
+def names_cause(truth: dict, concept: str) -> bool:
+    """Whether ticking `concept` names the task's cause: the changed concept of an object
+    shift; any concept of the added object of a distractor shift."""
+    if truth["kind"] == "distractor":
+        return concept.split(".")[0] == truth["cause"].split(".")[0]
+    return concept == truth["cause"]
+
+
 def is_correct(truth: dict, selected, none: bool) -> bool:
-    """The paper's rule (see the module's docstring)."""
+    """The paper's rule, the cause included (see the module's docstring)."""
     if truth["kind"] == "other":
         return none
-    return not none and set(truth["required"]) <= set(selected)
+    if none:
+        return False
+    if truth["kind"] == "distractor":
+        return any(names_cause(truth, c) for c in selected)
+    return set(truth["required"]) <= set(selected)
+
+
+def is_exact(truth: dict, selected, none: bool) -> bool:
+    """The cause and nothing else (see the module's docstring)."""
+    if truth["kind"] == "other":
+        return none and not selected
+    chosen = set(selected)
+    if none or not chosen:
+        return False
+    return chosen in ({truth["cause"]}, set(truth["required"]))
+
+
+def precision(truth: dict, selected, none: bool) -> float:
+    """The share of the ticked concepts that name the cause (NaN when none is ticked)."""
+    if truth["kind"] == "other" or none or not selected:
+        return math.nan
+    return sum(names_cause(truth, c) for c in selected) / len(selected)
 
 
 def answer_rows(folder: Path) -> list[dict]:
@@ -98,10 +133,16 @@ def answer_rows(folder: Path) -> list[dict]:
                     "none": int(a.none),
                     "matters": int(a.matters),
                     "correct": int(is_correct(t, a.selected, a.none)),
+                    "exact": int(is_exact(t, a.selected, a.none)),
+                    "precision": _ratio(precision(t, a.selected, a.none)),
                     "duration_s": a.duration_s,
                 }
             )
     return rows
+
+
+def _ratio(x: float) -> str:
+    return "" if math.isnan(x) else f"{x:.4g}"
 
 
 @dataclass(frozen=True)
@@ -111,6 +152,9 @@ class Cell:
     condition: str
     n: int
     right: int
+    exact: int = 0
+    precision: float = math.nan
+    """The mean precision of the answers that ticked a concept (NaN when none did)."""
 
     @property
     def accuracy(self) -> float:
@@ -146,10 +190,24 @@ class Analysis:
 
 
 def accuracy_cells(rows: list[dict]) -> list[Cell]:
-    groups: dict[tuple[str, str, str], list[int]] = defaultdict(list)
+    groups: dict[tuple[str, str, str], list[dict]] = defaultdict(list)
     for r in rows:
-        groups[(r["world"], r["kind"], r["condition"])].append(int(r["correct"]))
-    return [Cell(w, k, c, len(v), sum(v)) for (w, k, c), v in sorted(groups.items())]
+        groups[(r["world"], r["kind"], r["condition"])].append(r)
+    cells = []
+    for (w, k, c), v in sorted(groups.items()):
+        shares = [float(r["precision"]) for r in v if r["precision"] != ""]
+        cells.append(
+            Cell(
+                w,
+                k,
+                c,
+                len(v),
+                sum(int(r["correct"]) for r in v),
+                sum(int(r["exact"]) for r in v),
+                sum(shares) / len(shares) if shares else math.nan,
+            )
+        )
+    return cells
 
 
 def chi2_tests(rows: list[dict], conditions: tuple[str, ...]) -> list[Chi2]:
@@ -235,14 +293,18 @@ def table_md(a: Analysis) -> str:
         "",
         "## Naming the cause of the failure",
         "",
-        "| world | shift | condition | n | accuracy ± SE | paper |",
-        "|---|---|---|---|---|---|",
+        "Accuracy: the answer includes the cause (the paper's rule). Exact: the cause and "
+        "nothing else. Precision: the share of an answer's ticks that name the cause.",
+        "",
+        "| world | shift | condition | n | accuracy ± SE | paper | exact | precision |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for c in a.cells:
         paper = paper_accuracy(c.world, c.kind, c.condition)
         lines.append(
             f"| {c.world} | {c.kind} | {c.condition} | {c.n} | "
-            f"{_pct(c.accuracy)} ± {100 * c.se:.0f} | {_pct(paper)} |"
+            f"{_pct(c.accuracy)} ± {100 * c.se:.0f} | {_pct(paper)} | "
+            f"{_pct(c.exact / c.n)} | {_pct(c.precision)} |"
         )
     lines += [
         "",

@@ -206,3 +206,42 @@ def test_the_familiarisation_shows_each_explanation_only_to_those_who_get_it(stu
         for jargon in ("R'", "Δφ", "counterfactual", "task-irrelevant", "TI ", "TR "):
             assert jargon not in text
         assert picture is None or (picture.dtype == np.uint8 and picture.shape[2] == 3)
+
+
+DISTRACTOR = {
+    "kind": "distractor",
+    "cause": "distractor.presence",
+    "required": ["distractor.colour", "distractor.shape"],
+}
+OBJECT = {"kind": "object", "cause": "goal.colour", "required": ["goal.colour"]}
+OTHER = {"kind": "other", "cause": None, "required": []}
+
+
+@pytest.mark.parametrize(
+    ("truth", "selected", "none", "correct", "exact", "precision"),
+    [
+        (DISTRACTOR, ["distractor.presence"], False, 1, 1, 1.0),  # the planted cause itself
+        (DISTRACTOR, ["distractor.colour", "distractor.shape"], False, 1, 1, 1.0),  # its looks
+        (DISTRACTOR, ["distractor.colour"], False, 1, 0, 1.0),  # its object, one look
+        (DISTRACTOR, ["goal.colour"], False, 0, 0, 0.0),
+        (OBJECT, ["goal.colour"], False, 1, 1, 1.0),
+        (OBJECT, ["goal.shape"], False, 0, 0, 0.0),  # the object, not the changed concept
+        (OBJECT, ["goal.colour", "goal.shape", "wall.colour", "distractor.presence"], False,
+         1, 0, 0.25),  # ticking everything includes the cause but is not knowing it
+        (OTHER, [], True, 1, 1, None),
+        (OTHER, ["goal.colour"], True, 1, 0, None),
+        (OBJECT, [], True, 0, 0, None),
+    ],
+)  # fmt: skip
+def test_answers_are_scored_by_the_cause_they_name(truth, selected, none, correct, exact,
+                                                   precision, study_check):  # fmt: skip
+    """A distractor is named by its presence (the planted cause) or its object; exact match
+    and precision stand beside the paper's rule, so that ticking everything scores low."""
+    from dfa_viz.study.analysis import is_correct, is_exact
+    from dfa_viz.study.analysis import precision as share
+
+    assert is_correct(truth, selected, none) == bool(correct)
+    assert study_check.correct(truth, selected, none) == bool(correct)
+    assert is_exact(truth, selected, none) == bool(exact)
+    got = share(truth, selected, none)
+    assert math.isnan(got) if precision is None else got == precision
