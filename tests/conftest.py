@@ -64,6 +64,21 @@ class StudyCheck:
         return stat, math.erfc(math.sqrt(stat / 2))
 
     @staticmethod
+    def fisher(a: int, b: int, c: int, d: int) -> float:
+        """Two-sided Fisher's exact p of [[a, b], [c, d]]: the hypergeometric probability of
+        every table with the same margins no likelier than the one seen."""
+        from math import comb
+
+        row, col, n = a + b, a + c, a + b + c + d
+
+        def prob(x: int) -> float:
+            return comb(col, x) * comb(n - col, row - x) / comb(n, row)
+
+        seen = prob(a)
+        tables = range(max(0, row + col - n), min(row, col) + 1)
+        return min(1.0, sum(prob(x) for x in tables if prob(x) <= seen * (1 + 1e-7)))
+
+    @staticmethod
     def wilcoxon(x, y) -> float:
         """Two-sided exact signed-rank p: every sign assignment of the ranked differences."""
         import itertools

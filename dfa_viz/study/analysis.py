@@ -13,7 +13,9 @@ score as knowing.
                 sqrt(p (1 - p) / n) (the paper's error bars)
     chi2        per world, each condition against "none" (or the first condition): the 2 x 2
                 table right/wrong x condition, Pearson's chi-squared with 1 degree of freedom
-                (scipy.stats.chi2_contingency, no continuity correction)
+                (scipy.stats.chi2_contingency, no continuity correction), and beside it
+                Fisher's exact test (scipy.stats.fisher_exact, two-sided), the one to read
+                when a cell's expected count is under 5
     wilcoxon    per participant, the share of "yes, it matters" on TR tasks against that on TI
                 tasks (scipy.stats.wilcoxon, two-sided; only participants who had both)
     rejection   the share of TR answers saying it matters (the paper: 79%)
@@ -173,6 +175,9 @@ class Chi2:
     baseline: str
     chi2: float
     p: float
+    fisher_p: float = math.nan
+    small: bool = False
+    """Some cell's expected count is under 5: read Fisher's exact p, not the chi-squared's."""
 
 
 @dataclass(frozen=True)
@@ -212,7 +217,7 @@ def accuracy_cells(rows: list[dict]) -> list[Cell]:
 
 def chi2_tests(rows: list[dict], conditions: tuple[str, ...]) -> list[Chi2]:
     """Per world, each condition against the baseline (see the module's docstring)."""
-    from scipy.stats import chi2_contingency
+    from scipy.stats import chi2_contingency, fisher_exact
 
     base = "none" if "none" in conditions else conditions[0]
     out = []
@@ -229,9 +234,11 @@ def chi2_tests(rows: list[dict], conditions: tuple[str, ...]) -> list[Chi2]:
             try:
                 res = chi2_contingency(t, correction=False)
                 stat, p = float(res.statistic), float(res.pvalue)
+                small = bool((res.expected_freq < 5).any())
             except ValueError:  # a zero row or column: nothing to compare
-                stat, p = math.nan, math.nan
-            out.append(Chi2(world, c, base, stat, p))
+                stat, p, small = math.nan, math.nan, True
+            exact = float(fisher_exact(t).pvalue) if sum(map(sum, t)) else math.nan
+            out.append(Chi2(world, c, base, stat, p, exact, small))
     return out
 
 
@@ -308,12 +315,16 @@ def table_md(a: Analysis) -> str:
         )
     lines += [
         "",
-        "## Conditions compared (χ²(1), per world)",
+        "## Conditions compared (per world)",
         "",
-        "| world | condition | against | χ² | p |",
-        "|---|---|---|---|---|",
+        "χ²(1) as the paper reports it; Fisher's exact p beside it, the one to read where a "
+        "cell's expected count is under 5 (marked *).",
+        "",
+        "| world | condition | against | χ² | p | Fisher's exact p |",
+        "|---|---|---|---|---|---|",
         *(
-            f"| {t.world} | {t.condition} | {t.baseline} | {_num(t.chi2)} | {_num(t.p)} |"
+            f"| {t.world} | {t.condition} | {t.baseline} | {_num(t.chi2)} | {_num(t.p)} | "
+            f"{_num(t.fisher_p)}{' *' if t.small else ''} |"
             for t in a.chi2
         ),
         "",

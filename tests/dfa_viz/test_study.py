@@ -169,6 +169,8 @@ def test_the_analysis_matches_the_statistics_computed_again(study, study_check):
     no = [int(r["correct"]) for r in rows if r["condition"] == "none"]
     stat, p = study_check.chi2(sum(cf), len(cf) - sum(cf), sum(no), len(no) - sum(no))
     assert math.isclose(test.chi2, stat) and math.isclose(test.p, p)
+    exact = study_check.fisher(sum(cf), len(cf) - sum(cf), sum(no), len(no) - sum(no))
+    assert math.isclose(test.fisher_p, exact) and test.small  # 12 answers: small cells
     pairs = {}
     for r in rows:
         if r["relevance"]:
