@@ -10,7 +10,8 @@ from pathlib import Path
 from dfa_viz.backends import BACKENDS, run_all
 from dfa_viz.experiment.conditions import CONDITIONS, PAPER_WORLDS, SHIFT_KINDS
 from dfa_viz.experiment.figures import write_plots, write_rrd
-from dfa_viz.experiment.results import ResultsFolder, write_table
+from dfa_viz.experiment.folder import ResultsFolder
+from dfa_viz.experiment.results import results_folder, write_table
 from dfa_viz.experiment.runner import RunSpec, Settings, run_one
 from sim.core import UserError
 
@@ -85,20 +86,22 @@ def _warm_base_policies(worlds: Sequence[str]) -> None:
 def run_resumable(
     job,
     specs: Sequence,
-    folder,
+    folder: ResultsFolder,
     settings,
     *,
     worlds: Sequence[str],
     describe,
+    lines,
     unit: str,
     backend: str,
     workers: int,
     ray_address: str | None,
     progress: bool,
 ) -> tuple[int, int, float]:
-    """Run `job(spec, settings)` for every spec whose key is not yet in `folder` (a results
-    folder with `done()` and `append(result)`) on a backend, with a progress bar whose postfix
-    is `describe(result)`: what the q2 experiment and the explanation benchmark share.
+    """Run `job(spec, settings)` for every spec whose key is not yet done in `folder` on a
+    backend, each result's (rows, timings) = `lines(result)` appended to it, with a progress
+    bar whose postfix is `describe(result)`: what the q2 experiment and the explanation
+    benchmark share.
     Returns (skipped, executed, seconds)."""
     if backend not in BACKENDS:
         raise UserError(f"unknown backend {backend!r}; accepted: {', '.join(BACKENDS)}")
@@ -120,7 +123,7 @@ def run_resumable(
         )
 
         def on_result(result) -> None:
-            folder.append(result)
+            folder.append(*lines(result))
             bar.set_postfix_str(describe(result), refresh=False)
             bar.update(1)
 
@@ -150,7 +153,7 @@ def run_experiment(
     progress: bool = True,
 ) -> Summary:
     """Run every planned run not yet in `out`, then write the table, plots and recording."""
-    folder = ResultsFolder(out, settings)
+    folder = results_folder(out, settings)
     specs = plan.specs()
     skipped, executed, wall_s = run_resumable(
         run_one,
@@ -162,6 +165,7 @@ def run_experiment(
             f"{r['world']} {r['shift']} {r['condition']} b={r['budget']} s={r['seed']}: "
             f"{r['success']}"
         ),
+        lines=lambda r: ([r], [r]),
         unit="run",
         backend=backend,
         workers=workers,

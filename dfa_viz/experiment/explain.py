@@ -233,7 +233,7 @@ def run_explain(
     """Run every task not yet in `out`, then write the table, the plot and the sorted CSVs."""
     from dfa_viz.experiment.experiment import Summary, run_resumable
     from dfa_viz.experiment.explain_figures import write_plot
-    from dfa_viz.experiment.explain_results import ExplainFolder, write_table
+    from dfa_viz.experiment.explain_results import explain_folder, write_table
     from sim.core import UserError
 
     bad = [e for e in settings.explainers if e not in EXPLAINERS]
@@ -244,7 +244,7 @@ def run_explain(
     if settings.max_size < 1:
         raise UserError(f"--max-size must be at least 1, not {settings.max_size}")
     plan.check()
-    folder = ExplainFolder(out, settings)
+    folder = explain_folder(out, settings)
     specs = plan.specs()
 
     def describe(result: dict) -> str:
@@ -259,6 +259,7 @@ def run_explain(
         settings,
         worlds=plan.worlds,
         describe=describe,
+        lines=lambda r: (r["rows"], r["timings"]),
         unit="task",
         backend=backend,
         workers=workers,

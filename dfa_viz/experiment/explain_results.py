@@ -1,25 +1,19 @@
-"""The explanation benchmark's folder: every task's rows, resumable, and the table of hit rates.
+"""The explanation benchmark's folder (folder.ResultsFolder) and the table of hit rates.
 
     <out>/config.json   the settings every job shares (a folder keeps to one set)
-    <out>/tasks.csv     one row per (world, shift, seed, explainer) (explain.COLUMNS); whole
-                        lines appended while the benchmark runs (lines that do not fit on the
-                        disk are cut off again), rewritten sorted by key at the end (to a
-                        temporary file, then renamed)
+    <out>/tasks.csv     one row per (world, shift, seed, explainer) (explain.COLUMNS),
+                        resumable (folder.py)
     <out>/timings.csv   per row: its key, the explainer's wall time on that task and the worker
                         (not part of the results: it differs between executions)
     <out>/table.md      hit rates with 95% Wilson intervals, and time per task
     <out>/hits.png      (explain_figures.py)
 
-An interrupted benchmark (a killed process, a full disk) resumes from the folder: a task is
-done when every explainer has its row; a line cut short by the interruption is never read as a
-row, and dropped. A task's timings are appended before its rows.
+An interrupted benchmark resumes from the folder: a task is done when every explainer has its
+row.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -33,9 +27,10 @@ from dfa_viz.experiment.explain import (
     TIMING_COLUMNS,
     ExplainSettings,
 )
+from dfa_viz.experiment.folder import ResultsFolder
 from search.stats import wilson
 from sim import PAPER_WORLDS
-from sim.core import UserError, files
+from sim.core import files
 
 METRICS = {
     "hit1": "top-1",
@@ -44,94 +39,23 @@ METRICS = {
 }
 
 
-def _line(columns: Sequence[str], row: Mapping[str, object]) -> str:
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([row[c] for c in columns])
-    return buf.getvalue()
-
-
 def row_key(row: Mapping[str, str]) -> tuple[str, str, int, str]:
     return (row["world"], row["shift"], int(row["seed"]), row["explainer"])
 
 
-class ExplainFolder:
-    """Reads and writes one benchmark's folder."""
-
-    def __init__(self, out: str | Path, settings: ExplainSettings) -> None:
-        self.out = Path(out)
-        self.settings = settings
-        self.tasks_csv = self.out / "tasks.csv"
-        self.timings_csv = self.out / "timings.csv"
-        self.out.mkdir(parents=True, exist_ok=True)
-        self._check_config()
-        for path, columns in ((self.tasks_csv, COLUMNS), (self.timings_csv, TIMING_COLUMNS)):
-            self._repair(path, columns)
-
-    def _check_config(self) -> None:
-        path = self.out / "config.json"
-        mine = json.loads(json.dumps({"settings": self.settings.to_dict(), "columns": COLUMNS}))
-        if path.is_file():
-            theirs = json.loads(path.read_text())
-            if theirs != mine:
-                raise UserError(
-                    f"{self.out} holds results made with {theirs['settings']}; these use "
-                    f"{mine['settings']}: choose another --out or the same settings"
-                )
-        else:
-            files.write_text(path, json.dumps(mine, indent=2) + "\n")
-
-    @staticmethod
-    def _repair(path: Path, columns: Sequence[str]) -> None:
-        """Create the file with its header, or drop a last line an interruption cut short."""
-        header = _line(columns, dict(zip(columns, columns, strict=True)))
-        if not path.is_file() or path.stat().st_size == 0:
-            files.write_text(path, header)
-            return
-        text = path.read_text()
-        if text.split("\n", 1)[0].split(",") != list(columns):
-            raise UserError(f"{path}: columns {text.split(chr(10), 1)[0]}, expected {columns}")
-        if not text.endswith("\n"):
-            files.write_text(path, text[: text.rfind("\n") + 1])
-
-    @staticmethod
-    def _read(path: Path, key) -> list[dict[str, str]]:
-        reader = csv.DictReader(io.StringIO(files.whole_lines(path), newline=""))
-        rows = [r for r in reader if None not in r.values() and None not in r]
-        return list({key(r): r for r in rows}.values())
-
-    def rows(self) -> list[dict[str, str]]:
-        """Every complete row of tasks.csv (the last one wins if a key appears twice)."""
-        return self._read(self.tasks_csv, row_key)
-
-    def timings(self) -> list[dict[str, str]]:
-        return self._read(self.timings_csv, row_key)
-
-    def done(self) -> set[tuple[str, str, int]]:
-        """The (world, shift, seed) tasks every explainer of the settings has a row for."""
-        have: dict[tuple[str, str, int], set[str]] = defaultdict(set)
-        for r in self.rows():
-            have[(r["world"], r["shift"], int(r["seed"]))].add(r["explainer"])
-        need = set(self.settings.explainers)
-        return {k for k, got in have.items() if need <= got}
-
-    def append(self, result: Mapping[str, list[dict[str, str]]]) -> None:
-        """Append one task's timings, then its rows, each all on disk as whole lines or none."""
-        for path, columns, rows in (
-            (self.timings_csv, TIMING_COLUMNS, result["timings"]),
-            (self.tasks_csv, COLUMNS, result["rows"]),
-        ):
-            files.append_bytes(path, "".join(_line(columns, r) for r in rows).encode())
-
-    def finalise(self) -> list[dict[str, str]]:
-        """Rewrite both files sorted by key (atomically); returns the rows."""
-        rows = sorted(self.rows(), key=row_key)
-        for path, columns, items in (
-            (self.tasks_csv, COLUMNS, rows),
-            (self.timings_csv, TIMING_COLUMNS, sorted(self.timings(), key=row_key)),
-        ):
-            header = _line(columns, dict(zip(columns, columns, strict=True)))
-            files.write_text(path, header + "".join(_line(columns, r) for r in items))
-        return rows
+def explain_folder(out: str | Path, settings: ExplainSettings) -> ResultsFolder:
+    """The benchmark's folder: tasks.csv, one row per explainer; a task is done when every
+    explainer of the settings has its row."""
+    return ResultsFolder(
+        out,
+        settings.to_dict(),
+        rows_file="tasks.csv",
+        columns=COLUMNS,
+        timing_columns=TIMING_COLUMNS,
+        key=row_key,
+        unit=lambda r: (r["world"], r["shift"], int(r["seed"])),
+        parts=len(settings.explainers),
+    )
 
 
 # -- statistics -----------------------------------------------------------------------------------

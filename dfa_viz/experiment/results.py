@@ -1,34 +1,27 @@
-"""The results folder: every run's row, resumable, and the table of means beside the paper's.
+"""The q2 results folder (folder.ResultsFolder) and the table of means beside the paper's.
 
     <out>/config.json   the settings every run shares (a folder keeps to one set)
-    <out>/runs.csv      one row per finished run (runner.COLUMNS); appended one whole line at
-                        a time while the experiment runs (a line that does not fit on the disk
-                        is cut off again), rewritten sorted by run key (to a temporary file,
-                        then renamed) when it ends
+    <out>/runs.csv      one row per finished run (runner.COLUMNS), resumable (folder.py)
     <out>/timings.csv   per run: its key, wall time and the worker that ran it (not part of the
                         results: it differs between executions)
     <out>/table.md      means and 95% confidence intervals beside the paper's numbers
     <out>/plots/*.png, <out>/curves.rrd   (figures.py)
 
-An interrupted experiment (a killed process, a full disk) resumes from the folder: runs whose
-key is in runs.csv are skipped; a line cut short by the interruption is never read as a row,
-and dropped. A run's timing is appended before its row, so a run in runs.csv has its timing.
+An interrupted experiment resumes from the folder: runs whose key is in runs.csv are skipped.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
 from collections import defaultdict
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from dfa_viz.experiment.conditions import CONDITION_NAMES, CONDITIONS, paper_value
+from dfa_viz.experiment.folder import ResultsFolder
 from dfa_viz.experiment.runner import COLUMNS, KEY, Settings
-from sim.core import UserError, files
+from sim.core import files
 
 TIMING_COLUMNS = (*KEY, "duration_s", "cpu_s", "host")
 Key = tuple[str, str, str, int, int]
@@ -45,71 +38,16 @@ def key_of(row: dict[str, str]) -> Key:
     return (row["world"], row["shift"], row["condition"], int(row["budget"]), int(row["seed"]))
 
 
-def _csv_line(columns: Sequence[str], row: Mapping[str, object]) -> str:
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([row[c] for c in columns])
-    return buf.getvalue()
-
-
-class ResultsFolder:
-    """Reads and writes one experiment's folder."""
-
-    def __init__(self, out: str | Path, settings: Settings) -> None:
-        self.out = Path(out)
-        self.settings = settings
-        self.runs_csv = self.out / "runs.csv"
-        self.timings_csv = self.out / "timings.csv"
-        self.out.mkdir(parents=True, exist_ok=True)
-        self._check_config()
-        for path, columns in ((self.runs_csv, COLUMNS), (self.timings_csv, TIMING_COLUMNS)):
-            self._repair(path, columns)
-
-    def _check_config(self) -> None:
-        path = self.out / "config.json"
-        mine = {"settings": self.settings.to_dict(), "columns": list(COLUMNS)}
-        if path.is_file():
-            theirs = json.loads(path.read_text())
-            if theirs != mine:
-                raise UserError(
-                    f"{self.out} holds results made with {theirs['settings']}; these runs use "
-                    f"{mine['settings']}: choose another --out or the same settings"
-                )
-        else:
-            files.write_text(path, json.dumps(mine, indent=2) + "\n")
-
-    @staticmethod
-    def _repair(path: Path, columns: Sequence[str]) -> None:
-        """Create the file with its header, or drop a last line an interruption cut short."""
-        if not path.is_file() or path.stat().st_size == 0:
-            files.write_text(path, _csv_line(columns, dict(zip(columns, columns, strict=True))))
-            return
-        text = path.read_text()
-        header = text.split("\n", 1)[0].split(",")
-        if header != list(columns):
-            raise UserError(f"{path}: columns {header}, expected {list(columns)}")
-        if not text.endswith("\n"):
-            files.write_text(path, text[: text.rfind("\n") + 1])
-
-    def rows(self) -> list[dict[str, str]]:
-        """Every complete row of runs.csv (the last row wins if a key appears twice)."""
-        reader = csv.DictReader(io.StringIO(files.whole_lines(self.runs_csv), newline=""))
-        rows = [r for r in reader if None not in r.values() and None not in r]
-        return list({key_of(r): r for r in rows}.values())
-
-    def done(self) -> set[Key]:
-        return {key_of(r) for r in self.rows()}
-
-    def append(self, result: dict[str, object]) -> None:
-        """Append one run's timing, then its row, each a whole line on disk or none."""
-        for path, columns in ((self.timings_csv, TIMING_COLUMNS), (self.runs_csv, COLUMNS)):
-            files.append_bytes(path, _csv_line(columns, result).encode())
-
-    def finalise(self) -> list[dict[str, str]]:
-        """Rewrite runs.csv sorted by run key (atomically); returns the rows."""
-        rows = sorted(self.rows(), key=key_of)
-        header = _csv_line(COLUMNS, dict(zip(COLUMNS, COLUMNS, strict=True)))
-        files.write_text(self.runs_csv, header + "".join(_csv_line(COLUMNS, r) for r in rows))
-        return rows
+def results_folder(out: str | Path, settings: Settings) -> ResultsFolder:
+    """The q2 experiment's folder: runs.csv, one row per run (its own unit)."""
+    return ResultsFolder(
+        out,
+        settings.to_dict(),
+        rows_file="runs.csv",
+        columns=COLUMNS,
+        timing_columns=TIMING_COLUMNS,
+        key=key_of,
+    )
 
 
 # -- statistics -----------------------------------------------------------------------------------

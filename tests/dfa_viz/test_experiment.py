@@ -12,7 +12,7 @@ from dfa_viz.cli import main
 from dfa_viz.configs import Finetuning
 from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
 from dfa_viz.experiment.experiment import Plan, run_experiment
-from dfa_viz.experiment.results import ResultsFolder, cf_beats_baseline, summarise
+from dfa_viz.experiment.results import cf_beats_baseline, results_folder, summarise
 from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
 from sim import get_world
 from sim.core import UserError
@@ -99,7 +99,7 @@ def test_table_plot_and_recording(local_run):
 @pytest.mark.slow
 def test_other_settings_do_not_mix_into_a_folder(local_run):
     with pytest.raises(UserError, match="another --out"):
-        ResultsFolder(local_run.out, Settings(finetuning=Finetuning(steps=41)))
+        results_folder(local_run.out, Settings(finetuning=Finetuning(steps=41)))
 
 
 @pytest.mark.slow

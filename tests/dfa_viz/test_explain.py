@@ -15,7 +15,7 @@ from dfa_viz.experiment.explain import (
     run_explain,
 )
 from dfa_viz.experiment.explain_figures import write_plot
-from dfa_viz.experiment.explain_results import ExplainFolder, cell, markdown_table
+from dfa_viz.experiment.explain_results import cell, explain_folder, markdown_table
 from sim.core import UserError
 
 PLAN = ExplainPlan(worlds=("nav2d",), shifts=("object_ti", "distractor_ti"), tasks=2)
@@ -73,7 +73,7 @@ def test_a_task_is_a_pure_function_of_its_spec():
 
 def test_other_settings_do_not_mix_into_a_folder(benchmark):
     with pytest.raises(UserError, match="another --out"):
-        ExplainFolder(benchmark.out, ExplainSettings(explainers=("random",)))
+        explain_folder(benchmark.out, ExplainSettings(explainers=("random",)))
 
 
 def test_rates_are_written_with_wilson_intervals():

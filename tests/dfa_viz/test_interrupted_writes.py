@@ -382,7 +382,7 @@ def test_results_rows_that_do_not_fit_are_cut_off_and_never_read(tmp_path, refer
     (out / "config.json").write_bytes((ref / "config.json").read_bytes())
     body = r"""
 import csv
-from dfa_viz.experiment.results import ResultsFolder
+from dfa_viz.experiment.results import results_folder
 from dfa_viz.experiment.runner import Settings
 from dfa_viz.configs import Finetuning
 
@@ -391,15 +391,16 @@ config = json.load(open(os.path.join(ref, "config.json")))["settings"]
 settings = Settings(finetuning=Finetuning(**config["finetuning"]), max_size=config["max_size"])
 rows = list(csv.DictReader(open(os.path.join(ref, "runs.csv"))))
 times = {"duration_s": "1.0", "cpu_s": "1.0", "host": "here"}
-folder = ResultsFolder(out, settings)
-folder.append({**rows[0], **times})
+folder = results_folder(out, settings)
+first, second = [{**rows[0], **times}], [{**rows[1], **times}]
+folder.append(first, first)
 got = {}
 for more in (10, 0):  # part of the timing line fits (it goes first); then none of it
     room(folder.timings_csv, more)
-    got[f"timings {more}"] = attempt(lambda: folder.append({**rows[1], **times}))
+    got[f"timings {more}"] = attempt(lambda: folder.append(second, second))
 unlimited()
-room(folder.runs_csv, 10)  # the timing fits (its lines are shorter), part of the row
-got["runs"] = attempt(lambda: folder.append({**rows[1], **times}))
+room(folder.rows_csv, 10)  # the timing fits (its lines are shorter), part of the row
+got["runs"] = attempt(lambda: folder.append(second, second))
 unlimited()
 got["done"] = sorted(map(list, folder.done()))
 print(json.dumps(got))
@@ -418,8 +419,8 @@ print(json.dumps(got))
 
 def test_a_line_cut_short_is_not_a_row_for_the_readers(tmp_path, reference):
     from dfa_viz.experiment.explain import ExplainSettings
-    from dfa_viz.experiment.explain_results import ExplainFolder
-    from dfa_viz.experiment.results import ResultsFolder
+    from dfa_viz.experiment.explain_results import explain_folder
+    from dfa_viz.experiment.results import results_folder
     from dfa_viz.experiment.runner import Settings
 
     ref = reference("q2")
@@ -427,13 +428,13 @@ def test_a_line_cut_short_is_not_a_row_for_the_readers(tmp_path, reference):
     from dfa_viz.configs import Finetuning
 
     settings = Settings(Finetuning(**config["finetuning"]), config["max_size"])
-    folder = ResultsFolder(tmp_path / "q2", settings)
+    folder = results_folder(tmp_path / "q2", settings)
     whole = (ref / "runs.csv").read_text()
     last = whole.rstrip("\n").rsplit("\n", 1)[1]
     # a row cut inside its last field still has every column: only its missing newline tells
     (tmp_path / "q2" / "runs.csv").write_text(whole[: -len(last) - 1] + last[:-1])
     assert len(folder.rows()) == len(whole_csv(ref / "runs.csv")) - 1
-    explain = ExplainFolder(tmp_path / "explain", ExplainSettings(("counterfactual", "random")))
+    explain = explain_folder(tmp_path / "explain", ExplainSettings(("counterfactual", "random")))
     tasks = (reference("explain") / "tasks.csv").read_text()
     (tmp_path / "explain" / "tasks.csv").write_text(tasks[:-2])
     assert len(explain.rows()) == tasks.count("\n") - 2
