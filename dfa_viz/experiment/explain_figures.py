@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from dfa_viz.experiment.conditions import ACCURACY
-from dfa_viz.experiment.explain import EXPLAINER_NAMES
+from dfa_viz.experiment.explain import explainer_names
 from dfa_viz.experiment.explain_results import panel_order, rates
 from search.stats import wilson
 from sim.core import files
@@ -35,6 +35,7 @@ def write_plot(out: Path, rows: Sequence[Mapping[str, str]]) -> Path:
     from matplotlib.patches import Patch
 
     explainers, pairs = panel_order(rows)
+    names = explainer_names()
     worlds = list(dict.fromkeys(w for w, _ in pairs))
     readings = {"hit1": "top-1", "object_hit1": "object top-1", "hit3": "top-3"}
     fig = Figure(figsize=(4.6 * len(worlds), 2.9 * len(readings) + 0.6))
@@ -64,7 +65,7 @@ def write_plot(out: Path, rows: Sequence[Mapping[str, str]]) -> Path:
             ax.set_title(f"{world}, {title}", fontsize=10)
             ax.set_ylabel("share of tasks" if col == 0 else "")
             ax.grid(axis="y", alpha=0.3)
-    handles = [Patch(color=COLOURS.get(e, (0, 0, 0)), label=EXPLAINER_NAMES[e]) for e in explainers]
+    handles = [Patch(color=COLOURS.get(e, (0, 0, 0)), label=names[e]) for e in explainers]
     cf = Line2D([], [], color="black", lw=1.2, label="paper's users with CF")
     no = Line2D([], [], color="black", lw=1.2, ls=":", label="paper's users, no CF")
     fig.legend(

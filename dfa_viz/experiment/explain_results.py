@@ -21,11 +21,11 @@ from pathlib import Path
 from dfa_viz.experiment.conditions import ACCURACY
 from dfa_viz.experiment.explain import (
     COLUMNS,
-    EXPLAINER_NAMES,
     EXPLAINERS,
     SHIFTS,
     TIMING_COLUMNS,
     ExplainSettings,
+    explainer_names,
 )
 from dfa_viz.experiment.folder import ResultsFolder
 from search.stats import wilson
@@ -122,6 +122,7 @@ def markdown_table(
 ) -> str:
     """Per metric, one table: a row per world and shift, a column per explainer."""
     explainers, pairs = panel_order(rows)
+    names = explainer_names()
     tasks = {(r["world"], r["shift"], r["seed"]) for r in rows}
     per = sorted({sum(1 for t in tasks if t[:2] == p) for p in pairs})
     m = f"{per[0]}" if len(per) == 1 else f"{per[0]}–{per[-1]}"
@@ -151,7 +152,7 @@ def markdown_table(
             f"## {title[0].upper()}{title[1:]} hits (%)",
             "",
             "| world | shift | "
-            + " | ".join(EXPLAINER_NAMES[e] for e in explainers)
+            + " | ".join(names[e] for e in explainers)
             + (" | paper's users (CF / no CF) |" if metric == "hit1" else " |"),
             "|---|---|" + "---|" * len(explainers) + ("---|" if metric == "hit1" else ""),
         ]
@@ -183,7 +184,7 @@ def markdown_table(
             f"{times[(w, e)][0]:.3f} ({times[(w, e)][1]:.2f})" if (w, e) in times else "—"
             for w in worlds
         ]
-        lines.append(f"| {EXPLAINER_NAMES[e]} | " + " | ".join(cols) + " |")
+        lines.append(f"| {names[e]} | " + " | ".join(cols) + " |")
     return "\n".join(lines) + "\n"
 
 

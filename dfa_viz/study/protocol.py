@@ -40,7 +40,6 @@ CONDITIONS = ("none", "counterfactual", "saliency", "both")
 KINDS = ("object", "distractor", "other")
 DESIGNS = ("between", "within")
 PAPER_TASKS = (("nav2d", 1), ("doorkey", 1), ("tabletop", 2))
-SALIENCY_METHODS = ("grad_cam", "integrated_gradients", "occlusion", "kernel_shap")
 
 
 @dataclass(frozen=True, order=True)
@@ -103,10 +102,11 @@ class Protocol:
                 raise UserError(f"unknown shift kind {k!r}; accepted: {', '.join(KINDS)}")
         if not self.kinds or len(set(self.kinds)) != len(self.kinds):
             raise UserError("kinds must name at least one shift kind, each once")
-        if self.saliency not in SALIENCY_METHODS:
+        from policy.saliency import METHODS
+
+        if self.saliency not in METHODS:
             raise UserError(
-                f"unknown saliency method {self.saliency!r}; accepted: "
-                + ", ".join(SALIENCY_METHODS)
+                f"unknown saliency method {self.saliency!r}; accepted: " + ", ".join(METHODS)
             )
         if not self.tasks or len({w for w, _ in self.tasks}) != len(self.tasks):
             raise UserError("[tasks] must name at least one world, each once")

@@ -12,6 +12,7 @@ from dfa_viz.experiment.explain import (
     ExplainSettings,
     TaskSpec,
     explain_task,
+    explainer_names,
     run_explain,
 )
 from dfa_viz.experiment.explain_figures import write_plot
@@ -115,3 +116,12 @@ def test_every_explainer_has_a_name_in_the_cli_defaults():
     from dfa_viz.configs import ExplainArgs
 
     assert ExplainArgs().methods == EXPLAINERS
+
+
+def test_the_saliency_explainers_are_policy_saliencys_methods_with_its_names():
+    from policy.saliency import METHOD_NAMES, METHODS
+
+    assert ("counterfactual", *METHODS, "random") == EXPLAINERS
+    names = explainer_names()
+    assert {m: names[m] for m in METHODS} == METHOD_NAMES
+    assert set(names) == set(EXPLAINERS)

@@ -66,6 +66,8 @@ def test_bad_protocols_are_one_line_errors(tmp_path, capsys):
         "[tasks]\nnowhere = 1": "unknown world",
         "[tasks]\nnav2d = 0": "from 1 to 20",
         "colour = 3": "unknown key 'colour'",
+        'saliency = "lime"': "unknown saliency method 'lime'; accepted: integrated_gradients, "
+        "occlusion, grad_cam, kernel_shap",
         "seed = [": "not a TOML file",
     }
     for text, why in bad.items():
