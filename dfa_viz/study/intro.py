@@ -1,5 +1,8 @@
 """The familiarisation's pictures of one world: its concepts shown, one example of each shift
-kind, and a counterfactual. Each a uint8 (H, W, 3) image, made once by `dfa study new`.
+kind, and a counterfactual. Each a uint8 (H, W, 3) image, made once by `dfa study new`, beside
+the world's words:
+
+    description         a 0-d str array: what the robot is and should do (`world_text`)
 
     concepts            a row per concept: the training scene with each of its values
                         (at most VALUES_SHOWN of them; the tabletop has 29 shapes, 81 colours)
@@ -81,6 +84,14 @@ def concept_rows(world: World, scene, extra) -> np.ndarray:
     return stack(rows, gap_px=14)
 
 
+def world_text(world: World, seed: int = EXAMPLE_SEED) -> str:
+    """What the familiarisation says of `world`: its description, else what a training task
+    asks for."""
+    if world.description:
+        return world.description
+    return f"The robot should do what it is asked: {world.train_task(seed).reward.instruction}."
+
+
 def intro_pictures(world: World, policy, protocol: Protocol) -> dict[str, np.ndarray]:
     """Every picture of the familiarisation of `world` (see the module's docstring)."""
     from dfa_viz.loop import diagnose
@@ -90,7 +101,10 @@ def intro_pictures(world: World, policy, protocol: Protocol) -> dict[str, np.nda
     seed = EXAMPLE_SEED + protocol.seed
     train = world.train_task(seed)
     extra = world.test_task("distractor_ti", seed).scene
-    out = {"concepts": concept_rows(world, train.scene, extra)}
+    out = {
+        "description": np.array(world_text(world, seed)),
+        "concepts": concept_rows(world, train.scene, extra),
+    }
     shape = world.obs_shape
     for kind in protocol.kinds:
         shift = "other" if kind == "other" else f"{kind}_ti"

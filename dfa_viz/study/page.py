@@ -40,12 +40,6 @@ KIND_TEXT = {
     "other": "**Something else changed** that is none of the looks listed, for instance where "
     "things are.",
 }
-WORLD_TEXT = {
-    "nav2d": "The robot is the white disc; it should drive to the goal.",
-    "doorkey": "The robot is the white triangle; it should pick up the key, open the door and "
-    "reach the goal square.",
-    "tabletop": "A robot arm seen from above should pick up an object and put it on another.",
-}
 
 
 class StudyPage:
@@ -255,7 +249,7 @@ def intro_screens(
         out.append(
             (
                 f"The things in the scene ({world})",
-                WORLD_TEXT.get(world, "")
+                str(pics.get("description", ""))
                 + " These are the looks the things can have; one of them, or none, made "
                 "the robot fail.",
                 pics["concepts"],

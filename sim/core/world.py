@@ -79,6 +79,9 @@ class World(abc.ABC):
         action_names: a name per continuous action dimension for plots (default "action k").
         shifts: the shift kinds `test_task` makes (Benchmark worlds).
         cloning: how its base policy is cloned (Cloning: demonstrations, steps, action noise).
+        description: what the agent is and what it should do, in a sentence or two for a
+            person who has never seen the world (the study's familiarisation); empty: tools
+            say a training task's instruction instead.
     """
 
     name: str
@@ -99,6 +102,7 @@ class World(abc.ABC):
     action_names: tuple[str, ...] = ()
     shifts: tuple[str, ...] = ()
     cloning: Cloning = Cloning()
+    description: str = ""
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
 

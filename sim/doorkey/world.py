@@ -43,6 +43,10 @@ class DoorKeyWorld(Benchmark):
     epsilon = 0.0
     lossless_frames = True  # gridworld frames are recorded without lossy compression
     demo_input = "keys"
+    description = (
+        "The robot is the white triangle; it should pick up the key, open the door and reach "
+        "the goal square."
+    )
     keys = (
         Key("turn left", "arrowleft", L.LEFT),
         Key("turn right", "arrowright", L.RIGHT),

@@ -40,6 +40,7 @@ class Nav2DWorld(Benchmark):
     epsilon = 0.2
     lossless_frames = True
     demo_input = "waypoints"
+    description = "The robot is the white disc; it should drive to the goal."
     image_extent = (-R.ARENA, R.ARENA, -R.ARENA, R.ARENA)
     action_names = ("dx", "dy")
 

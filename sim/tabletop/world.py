@@ -58,6 +58,7 @@ class TabletopWorld(Benchmark):
     search_first_only = True
     search_max_candidates = 20_000  # ~30 s: "no counterfactual" among the most promising
     demo_input = "pick_place"
+    description = "A robot arm seen from above should pick up an object and put it on another."
     image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
     action_names = ("pick x (m)", "pick y (m)", "place x (m)", "place y (m)")
 

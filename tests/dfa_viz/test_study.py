@@ -17,6 +17,7 @@ from dfa_viz.study.analysis import write_analysis
 from dfa_viz.study.answers import Answer, Store
 from dfa_viz.study.freeze import TRUTH, freeze, load_study, load_task
 from dfa_viz.study.protocol import Protocol, plan
+from sim import get_world
 from sim.core import UserError
 
 SMALL = Protocol(tasks=(("nav2d", 1),), conditions=("none", "counterfactual"), seed=0)
@@ -210,6 +211,18 @@ def test_the_familiarisation_shows_each_explanation_only_to_those_who_get_it(stu
         for jargon in ("R'", "Δφ", "counterfactual", "task-irrelevant", "TI ", "TR "):
             assert jargon not in text
         assert picture is None or (picture.dtype == np.uint8 and picture.shape[2] == 3)
+    looks = next(text for title, text, _ in full if title == "The things in the scene (nav2d)")
+    assert looks.startswith(get_world("nav2d").description + " These are the looks")
+
+
+def test_a_world_without_a_description_is_introduced_by_what_it_is_asked():
+    from dfa_viz.study.intro import world_text
+
+    world = get_world("minigrid:MiniGrid-DoorKey-5x5-v0")
+    assert world.description == ""
+    instruction = world.train_task(0).reward.instruction
+    assert instruction and world_text(world, 0).endswith(f"{instruction}.")
+    assert world_text(get_world("doorkey")) == get_world("doorkey").description != ""
 
 
 DISTRACTOR = {
