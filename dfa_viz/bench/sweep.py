@@ -22,12 +22,13 @@ def bench_sweep(name: str, *, tasks: int = 100, workers: int = 1, repeats: int =
     one torch thread per worker: here with one worker, else a process pool), and the
     forward-pass bound of the frames it evaluated."""
     from dfa_viz.backends import one_torch_thread
-    from dfa_viz.sweep.run import SweepJob, _policy, backend_runner
+    from dfa_viz.checked_policy import checked_policy
+    from dfa_viz.sweep.run import SweepJob, backend_runner
     from search.sweep import sweep, sweep_tasks
     from sim import get_world
 
     world = get_world(name)
-    policy = _policy(name, None)
+    policy = checked_policy(name, None)
     todo = sweep_tasks(world, tasks)
     runner = backend_runner(SweepJob(name), workers=workers)
     wall_s, result = best_of(lambda: sweep(world, policy, todo, runner=runner), repeats)

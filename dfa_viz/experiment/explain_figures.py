@@ -14,8 +14,8 @@ from pathlib import Path
 from dfa_viz.experiment.conditions import ACCURACY
 from dfa_viz.experiment.explain import explainer_names
 from dfa_viz.experiment.explain_results import panel_order, rates
+from dfa_viz.png import save_figure
 from search.stats import wilson
-from sim.core import files
 
 COLOURS = {  # RGB 0..1
     "counterfactual": (0.84, 0.15, 0.16),
@@ -77,6 +77,5 @@ def write_plot(out: Path, rows: Sequence[Mapping[str, str]]) -> Path:
     )
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     path = Path(out) / "hits.png"
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
+    save_figure(fig, path, dpi=110, tight=False)
     return path

@@ -20,8 +20,8 @@ from dfa_viz.experiment.conditions import (
     paper_value,
 )
 from dfa_viz.experiment.results import Cell, cells, panels
+from dfa_viz.png import save_figure
 from dfa_viz.rrd import RrdFile, send_blueprint
-from sim.core import files
 
 COLOURS = {  # RGB 0..255
     "nh_random": (127, 127, 127),
@@ -66,14 +66,6 @@ def _draw_panel(ax, table, world: str, shift: str, *, legend: bool) -> None:
         ax.legend(loc="lower right", fontsize=8, frameon=False)
 
 
-def _save(fig, path: Path) -> None:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    with files.atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight", metadata={"Software": None})
-
-
 def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
     """plots/<world>-<shift>.png for each panel present, and plots/overview.png (all panels)."""
     from matplotlib.figure import Figure
@@ -87,7 +79,7 @@ def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
         fig = Figure(figsize=(4.2, 3.4))
         _draw_panel(fig.add_subplot(1, 1, 1), table, world, shift, legend=True)
         paths.append(folder / f"{world}-{shift}.png")
-        _save(fig, paths[-1])
+        save_figure(fig, paths[-1])
     if pairs:
         cols = min(3, len(pairs))
         rows_n = -(-len(pairs) // cols)
@@ -96,7 +88,7 @@ def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
             _draw_panel(fig.add_subplot(rows_n, cols, i + 1), table, world, shift, legend=i == 0)
         fig.tight_layout()
         paths.append(folder / "overview.png")
-        _save(fig, paths[-1])
+        save_figure(fig, paths[-1])
     return paths
 
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import rerun as rr
 
-from dfa_viz.experiment.figures import _save
+from dfa_viz.png import save_figure
 from dfa_viz.rrd import RrdFile
 from dfa_viz.study.analysis import WORLD_ORDER, Analysis, Cell, paper_accuracy, table_md
 from dfa_viz.study.protocol import CONDITIONS, KINDS
@@ -74,7 +74,7 @@ def write_plot(path: Path, cells: list[Cell]) -> Path:
             handles = [Patch(color=COLOURS[c], label=c) for c in conds]
             handles.append(Line2D([], [], color="k", lw=2, label="paper"))
             ax.legend(handles=handles, fontsize=8, frameon=False, loc="upper right")
-    _save(fig, path)
+    save_figure(fig, path)
     return Path(path)
 
 

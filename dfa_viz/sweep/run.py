@@ -9,12 +9,12 @@ and any number of workers give the same result.
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from dfa_viz.checked_policy import checked_policy
 from dfa_viz.configs import SweepArgs
 from dfa_viz.sweep.figures import Heatmap
 from search.sweep import (
@@ -40,23 +40,13 @@ class SweepJob:
     """Check with the world's expert that R' can still be met (None: where it has one)."""
 
 
-@functools.lru_cache(maxsize=2)
-def _policy(world: str, spec: str | None):
-    from policy import base_policy
-    from policy.outside import load
-    from sim import get_world
-
-    w = get_world(world)
-    policy = load(spec, w) if spec is not None else base_policy(w)
-    policy.fits(w)
-    return policy
-
-
 def run_unit_job(unit: Unit, job: SweepJob) -> UnitResult:
     """One unit on a worker (the backends' job function)."""
     from sim import get_world
 
-    return run_unit(get_world(job.world), _policy(job.world, job.policy), unit, expert=job.expert)
+    return run_unit(
+        get_world(job.world), checked_policy(job.world, job.policy), unit, expert=job.expert
+    )
 
 
 def backend_runner(
@@ -142,7 +132,7 @@ def run_sweep(args: SweepArgs) -> SweepOutput:
     world = get_world(args.world)
     check(args, world)
     out = out_folder(args)
-    policy = _policy(world.name, args.policy)  # a bad spec: one line, before any work
+    policy = checked_policy(world.name, args.policy)  # a bad spec: one line, before any work
     tasks = sweep_tasks(world, args.tasks, args.seed)
     name = args.policy or "base policy"
     job = SweepJob(world.name, args.policy)
