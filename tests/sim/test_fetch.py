@@ -137,11 +137,3 @@ def test_a_distractor_starts_where_the_scene_says_and_waits_out_of_view_when_abs
     moved = world.step_batch([absent], np.zeros((1, 4), np.float32))[0]
     assert moved.agent[world.head :] != absent.agent[world.head :]
     assert frames_without.shape == (84, 84, 3)
-
-
-def test_what_is_not_a_fetch_task_is_one_line(capsys):
-    from dfa_viz.cli import main
-
-    assert main(["run", "--world", "fetch:FetchJuggle-v4"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "not a Fetch task; accepted: FetchPickAndPlace-v4" in err[0]

@@ -1,11 +1,10 @@
 """A plain gymnasium environment as a world through sim.gymenv: docs/examples/grid_reacher.py's
 environment and its table of concept edits. The world's frames and steps are the
 environment's own; edits change the state the environment is restored to; badly described
-environments are one line; and `dfa run` diagnoses and adapts a policy in it."""
+environments are one line (`dfa run` in it: tests/dfa_viz/test_world_runs.py)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import gymnasium
@@ -87,25 +86,3 @@ def test_a_badly_described_environment_is_one_line(reacher, change, message):
     with pytest.raises(UserError, match=message) as err:
         GymWorld("bad", **(kwargs | change))
     assert "\n" not in str(err.value)
-
-
-@pytest.mark.slow
-def test_dfa_run_diagnoses_and_adapts_a_policy_in_the_gymnasium_world(
-    reacher, tmp_path, monkeypatch, capsys
-):
-    """The base policy (cloned on first use, cached under DFA_CACHE) fails on a recoloured
-    target; the counterfactual changes the target's colour; TI feedback, variants and
-    finetuning raise its success on the shift."""
-    from dfa_viz.cli import main
-
-    monkeypatch.setenv("DFA_CACHE", str(tmp_path / "cache"))
-    args = ["run", "--world", "grid_reacher:reacher", "--shift", "object_ti", "--seed", "0"]
-    assert main([*args, "--json", "--out", str(tmp_path / "rec")]) == 0
-    report = json.loads(capsys.readouterr().out)
-    assert report["world"] == "gridreacher" and report["failed"]
-    changed = {(c["slot"], c["concept"]) for edit in report["counterfactual"] for c in edit}
-    assert changed == {("target", "colour")}, report["counterfactual"]
-    assert [f["label"] for f in report["feedback"]] == ["TI"] and report["augmented"] > 0
-    assert report["success_after"] - report["success_before"] >= 0.3, report
-    assert Path(report["recording"]) == tmp_path / "rec" / "gridreacher-object_ti-seed0.rrd"
-    assert Path(report["recording"]).stat().st_size > 0

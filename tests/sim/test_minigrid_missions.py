@@ -7,8 +7,7 @@ from __future__ import annotations
 import pytest
 
 import sim
-from dfa_viz.users import SimulatedUser
-from sim.core import PRESENCE, Change, Edit, UserError
+from sim.core import PRESENCE, UserError
 from sim.minigrid.mission import Mission, Named, named
 
 
@@ -49,14 +48,11 @@ def test_the_goals_presence_is_relevant_in_every_task():
         goal = next(o for o in task.scene.objects if o.slot.startswith("goal") and o.present)
         assert task.reward.is_relevant(goal.slot, PRESENCE), task.reward.instruction
         assert task.reward.is_relevant(goal.slot, "colour")  # "the green goal square"
-        removed = Edit.of(Change(goal.slot, PRESENCE, "present", "absent"))
-        label = SimulatedUser(w).label(task, removed).labels[0]
-        assert label.relevant
 
 
 def test_red_blue_doors_are_never_called_irrelevant():
     """Both door colours are named: no TI object shift (one line), no "whatever the door's
-    colour", and the simulated user marks a door's colour TR."""
+    colour", and R' makes a door's colour TR."""
     w = world("MiniGrid-RedBlueDoors-6x6-v0")
     assert "object_ti" not in w.shifts
     with pytest.raises(UserError, match="no TI object shift") as err:
@@ -69,9 +65,6 @@ def test_red_blue_doors_are_never_called_irrelevant():
         assert {o.value("colour") for o in doors} == {"red", "blue"}
         for door in doors:
             assert task.reward.is_relevant(door.slot, "colour")
-            new = "green"
-            edit = Edit.of(Change(door.slot, "colour", door.value("colour"), new))
-            assert SimulatedUser(w).label(task, edit).labels[0].relevant
         assert len(w.notes(task)) == 1 and "names the target" in w.notes(task)[0]
 
 

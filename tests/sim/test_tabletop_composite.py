@@ -123,21 +123,6 @@ def _same_search(got, want) -> None:
         assert np.array_equal(a.distances, b.distances, equal_nan=True), a.edit
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_a_planted_double_shift_gives_the_same_pair_with_either_renderer(world, mujoco_world, seed):
-    from dfa_viz.bench.tabletop import planted_shift_task
-
-    policy = base_policy(world)
-    task = planted_shift_task(world, seed, 2)
-    demo = world.demonstrate(task)
-    config = SearchConfig.for_world(world)
-    got = counterfactual_search(world, policy, task.scene, demo, config=config)
-    want = counterfactual_search(mujoco_world, policy, task.scene, demo, config=config)
-    assert got.size == 2, got.summary()
-    _same_search(got, want)
-
-
 def test_a_view_reaching_its_quadrants_edge_is_not_cut_from_a_shared_frame(world):
     """A view is cut from a frame of four only when it stays inside its quadrant; an object
     across the quadrants' edges (here: at the centre) is not taken for the top-left's."""
