@@ -23,17 +23,16 @@ BOUNDS = {"channels": (1, 256), "kernels": (1, 16), "strides": (1, 8), "hidden":
 MAX_SIDE_PX = 1024  # observations up to 1024 x 1024 pixels
 MAX_ACTIONS = 256
 WEIGHTS = "model.safetensors"
-SB3_ZIP = "sb3.zip"  # a finetuned stable-baselines3 policy, as stable-baselines3 stores one
 
 
 def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None) -> Path:
     """Write folder/model.safetensors and folder/config.json: the architecture (or, for a
     policy from outside, its Origin: what it was loaded from, as data), the weights' sha256 and
     `meta`. The weights are written first: a crash between the two leaves a digest that does
-    not match, never a folder that loads as something it is not. A finetuned copy of a
-    stable-baselines3 policy is also written as folder/sb3.zip, which stable-baselines3's own
-    load opens (policy.sb3zip.export_finetuned: made from the zip the policy was loaded from,
-    when that file is still there and unchanged)."""
+    not match, never a folder that loads as something it is not. Then the policy's loader
+    writes what it keeps beside them (`policy.save_beside`: for a finetuned stable-baselines3
+    policy, folder/sb3.zip, which stable-baselines3's own load opens, made from the zip the
+    policy was loaded from when that file is still there and unchanged)."""
     if policy.net is None:
         raise UserError("this policy has no weights of its own to save (an ONNX graph)")
     if policy.source is not None and policy.origin is None:
@@ -50,10 +49,8 @@ def save_policy(policy: Policy, folder: str | Path, *, meta: dict | None = None)
         doc = {"origin": policy.origin.to_dict()}
     doc |= {"weights_sha256": digest, "meta": meta or {}}
     files.write_text(folder / "config.json", json.dumps(doc, indent=2) + "\n")
-    if policy.origin is not None and policy.origin.kind == "sb3":
-        from policy.sb3zip import export_finetuned
-
-        export_finetuned(policy, folder / SB3_ZIP)
+    if policy.save_beside is not None:
+        policy.save_beside(policy, folder)
     return folder
 
 

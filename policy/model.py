@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 from torch import nn
 
-from sim.core import UserError
+from sim.core import UserError, files
 
 
 @dataclass(frozen=True)
@@ -118,7 +120,7 @@ class Origin:
     again on the command line."""
 
     kind: str
-    """The loader: "sb3", "torch" or "onnx"."""
+    """The loader's prefix: "sb3", "torch", "onnx" or one registered from outside."""
     file: str
     """The file's name (no folder: where it lies is the command line's business)."""
     sha256: str
@@ -126,6 +128,11 @@ class Origin:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    @classmethod
+    def of_file(cls, kind: str, path: Path) -> Origin:
+        """The origin of a policy its loader `kind` read from the file at `path`."""
+        return cls(kind, path.name, files.sha256(path))
 
     def __str__(self) -> str:
         return f"the {self.kind} policy {self.file} (sha256 {self.sha256[:12]}…)"
@@ -152,6 +159,8 @@ class Policy:
     it (None for the project's own checkpoints, whose config.json says everything); it is never
     written to a checkpoint. origin: what that spec read (Origin), which a finetuned copy
     records. chunk: frames per forward batch; by default as many as fit CHUNK_VALUES.
+    save_beside(policy, folder): what its loader writes beside a checkpoint of a finetuned
+    copy, in the policy's own format (sb3: the zip stable-baselines3 opens); None: nothing.
     """
 
     def __init__(
@@ -164,6 +173,7 @@ class Policy:
         source: str | None = None,
         origin: Origin | None = None,
         chunk: int | None = None,
+        save_beside: Callable[[Policy, Path], object] | None = None,
     ) -> None:
         config = getattr(net, "config", None)  # the project's ImagePolicy carries its own
         self.net = net.eval() if net is not None else None
@@ -173,6 +183,7 @@ class Policy:
         self.source = source
         self.origin = origin
         self.chunk = chunk or max(1, CHUNK_VALUES // int(np.prod(self.obs_shape)))
+        self.save_beside = save_beside
 
     @property
     def config(self) -> PolicyConfig:

@@ -13,6 +13,8 @@ has not trained yet holds).
     with_optimizer(path, sb3_policy)    add a fresh optimizer to a zip that lacks one
     export_finetuned(policy, path)      the policy's original zip, its policy.pth replaced by
                                         the finetuned state dict (SB3's own key names)
+    save_beside(policy, folder)         export_finetuned to folder/sb3.zip: what a checkpoint
+                                        of a finetuned sb3 policy holds besides its weights
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from torch import nn
 from sim.core import UserError, files
 
 OPTIMIZER = "policy.optimizer.pth"
+SB3_ZIP = "sb3.zip"  # a finetuned stable-baselines3 policy, as stable-baselines3 stores one
 WEIGHTS = "policy.pth"
 MAX_MEMBERS_BYTES = 1 << 30  # an sb3 zip copied here, inflated
 
@@ -112,9 +115,15 @@ def export_finetuned(policy, path: str | Path) -> Path | None:
         raise UserError(f"{source or 'this policy'}: not a stable-baselines3 policy")
     if not original.is_file() or files.sha256(original) != origin.sha256:
         return None
-    sb3_policy = policy.net.policy  # policy.outside.SB3Actor: the SB3 policy module it runs
+    sb3_policy = policy.net.policy  # policy.sb3_policy.SB3Actor: the SB3 policy module it runs
     contents = members(original)
     contents[WEIGHTS] = tensor_bytes(sb3_policy.state_dict())
     if OPTIMIZER not in contents:
         contents[OPTIMIZER] = tensor_bytes(fresh_optimizer(sb3_policy, contents["data"]))
     return write_zip(path, contents, like=original)
+
+
+def save_beside(policy, folder: str | Path) -> Path | None:
+    """export_finetuned(policy, folder/sb3.zip): the sb3 loader's Policy.save_beside, which
+    save_policy calls once the checkpoint is written."""
+    return export_finetuned(policy, Path(folder) / SB3_ZIP)

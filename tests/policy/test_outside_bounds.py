@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from policy.outside import MAX_DATA_BYTES
+from policy.sb3_policy import MAX_DATA_BYTES
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 ZIP, ONNX = EXAMPLES / "doorkey5x5_ppo.zip", EXAMPLES / "doorkey5x5_ppo.onnx"

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import torch
 
-from policy.checkpoint import SB3_ZIP, save_policy
+from policy.checkpoint import save_policy
 from policy.outside import load
-from policy.sb3zip import OPTIMIZER, WEIGHTS, members, with_optimizer
+from policy.sb3zip import OPTIMIZER, SB3_ZIP, WEIGHTS, members, with_optimizer
 from policy.train import TrainConfig, behaviour_clone
 from sim import get_world
 from sim.core import files
