@@ -131,9 +131,7 @@ def of_record(world: World, seed: int, config: TrainConfig) -> bool:
     """True for the policies of record: seed 0 and the default recipe of a world whose weights
     are committed (other worlds, e.g. any MiniGrid environment, are cached outside the
     repository)."""
-    return (
-        seed == RECORD_SEED and config == base_config(world) and record_folder(world).is_dir()
-    )
+    return seed == RECORD_SEED and config == base_config(world) and record_folder(world).is_dir()
 
 
 def base_policy(
