@@ -73,6 +73,7 @@ bench: setup
 lint: setup
 	$(PY) -m ruff check .
 	$(PY) -m ruff format --check .
+	$(PY) -m mypy --follow-imports=silent sim/core search
 
 format: setup
 	$(PY) -m ruff format .

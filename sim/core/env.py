@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import gymnasium as gym
 import numpy as np
 
 from sim.core.scene import Scene
 from sim.core.task import Task
-from sim.core.world import World
+from sim.core.world import Benchmark, World
 
 
 class SceneEnv(gym.Env):
@@ -23,7 +23,8 @@ class SceneEnv(gym.Env):
     it); `ends_by_time_limit` says whether the world's end is a time limit or a termination.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
+    # an instance variable on gymnasium.Env
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 10}
     ends_by_time_limit: ClassVar[bool] = True
 
     def __init__(self, world: World, render_mode: str | None = "rgb_array") -> None:
@@ -40,7 +41,9 @@ class SceneEnv(gym.Env):
 
     def _default_task(self, seed: int) -> Task:
         w = self.world
-        return w.train_task() if w.benchmark else w.task_for(w.sample_scene(seed))
+        if w.benchmark:
+            return cast(Benchmark, w).train_task()
+        return w.task_for(w.sample_scene(seed))
 
     def reward(self) -> float:
         """The reward of the current scene (the episode's history is `self.history`)."""

@@ -196,7 +196,7 @@ class World(abc.ABC):
         cur = list(scenes if scenes is not None else (t.scene for t in tasks))
         history = [[s] for s in cur]
         frames = [self.render_batch(cur)]  # each (B, H, W, 3)
-        actions = []
+        actions: list[np.ndarray] = []  # each (B,) or (B, A)
         for t in range(self.horizon):
             if actions and all(self.done(s) for s in cur):
                 frames.append(frames[-1])
@@ -246,7 +246,7 @@ class Benchmark(World):
         return self.train_task(seed).scene
 
     @abc.abstractmethod
-    def train_task(self, seed: int) -> Task:
+    def train_task(self, seed: int = 0) -> Task:
         """A task from the training distribution the base policy is cloned on."""
 
     @abc.abstractmethod
