@@ -1,8 +1,12 @@
-"""`dfa bench`: every speed figure, measured on this machine, written to benchmarks/latest.md."""
+"""`dfa bench`: every speed figure, measured on this machine, written to benchmarks/latest.md.
+
+What each world is measured on is data (WorldBench, BENCHES); the row producers read it.
+"""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from rich.console import Console
@@ -16,6 +20,8 @@ from dfa_viz.configs import BenchArgs
 from policy import base_policy
 from sim import PAPER_WORLDS, get_world
 from sim.core import files
+
+Row = tuple[str, str, str, bool | None]  # (what, value, target, met)
 
 
 def bench_run(
@@ -32,11 +38,32 @@ def bench_run(
     return time.perf_counter() - t0
 
 
-# world -> the sizes whose whole search has a time target (the issues' targets, 2 cores)
-TIME_TARGETS = {"nav2d": ((1, 2), 0.5), "doorkey": ((1,), 0.5)}
-# worlds measured with a policy from outside instead of a base policy of the project's own
+@dataclass(frozen=True)
+class WorldBench:
+    """What `dfa bench` measures on one world, beside its sweep (SWEPT) and, for the paper's
+    worlds, its learned search prior."""
+
+    policy: str | None = None
+    """A policy from outside (a policy.outside spec) instead of the world's base policy; the
+    costs of finetuning and of the experiment are measured only on the base policy."""
+    whole_search: tuple[tuple[int, ...], float] | None = None
+    """The sizes whose whole search, run to the end, has a time target (s) (the issues'
+    targets, 2 cores)."""
+    searches: bool = True
+    """The batched search against the naive loop and the forward-pass bound, and `dfa run`
+    end to end with a target."""
+    at_scale: bool = False
+    """The search at scale (dfa_viz.bench.tabletop) instead."""
+
+
 MINIGRID = "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12"
-OUTSIDE_POLICIES = {MINIGRID: "sb3:docs/examples/doorkey5x5_ppo.zip"}
+BENCHES = {
+    "nav2d": WorldBench(whole_search=((1, 2), 0.5)),
+    "doorkey": WorldBench(whole_search=((1,), 0.5)),
+    "tabletop": WorldBench(searches=False, at_scale=True),
+    MINIGRID: WorldBench(policy="sb3:docs/examples/doorkey5x5_ppo.zip"),
+}
+OUTSIDE_POLICIES = {name: b.policy for name, b in BENCHES.items() if b.policy is not None}
 MIN_RATIO = 10.0
 MAX_TO_BOUND = 2.0  # every search within 2x of its forward-pass bound (dfa_viz.bench.bound)
 PAGE_TARGETS = {
@@ -46,89 +73,90 @@ PAGE_TARGETS = {
 }
 
 
-def run_bench(args: BenchArgs) -> list[tuple[str, str, str, str]]:
-    """Measure, print a table, and write it as Markdown to `args.out`.
+def shown(name: str, bench: WorldBench) -> str:
+    """The world's name in a row, with the kind of a policy from outside."""
+    return name if bench.policy is None else f"{name} ({bench.policy.partition(':')[0]} policy)"
 
-    Rows are (what, value, target, met). The page figures need Chromium and take a minute or
-    two; they are measured when `args.page` is set.
-    """
-    worlds, repeats, page, out = args.worlds, args.repeats, args.page, args.out
-    rows: list[tuple[str, str, str, str]] = []
 
-    def add(what: str, value: str, target: str = "", ok: bool | None = None) -> None:
-        rows.append((what, value, target, "" if ok is None else ("yes" if ok else "NO")))
-
-    def costs(name: str, run_s: float) -> None:
-        from dfa_viz.bench.costs import cost_rows
-
-        rrd = Path("recordings") / "bench" / files.safe_name(f"{name}-object_ti-seed0.rrd")
-        for row in cost_rows(name, run_s, rrd, repeats=repeats):
-            add(*row)
-
-    for name in worlds:
-        if name in SWEPT:
-            for row in sweep_rows(name):
-                add(*row)
-        if name in PAPER_WORLDS:  # the learned search prior on planted size-2 tasks
-            for row in prior_rows(bench_prior(name, n_eval=args.prior_tasks)):
-                add(*row)
-        if name == "tabletop":
-            from dfa_viz.bench.tabletop import bench_rows, bench_tabletop
-
-            for what, value, target, ok in bench_rows(bench_tabletop(repeats=repeats)):
-                add(f"tabletop: {what}", value, target, ok)
-            costs(name, bench_run(name))
-            continue
-        spec = OUTSIDE_POLICIES.get(name)
-        shown = name if spec is None else f"{name} ({spec.partition(':')[0]} policy)"
-        if name in TIME_TARGETS:
-            sizes, max_s = TIME_TARGETS[name]
-            label = " + ".join(f"size {k}" for k in sizes)
-            # `other` has no counterfactual: the search really runs every size to the end
-            r = bench_world(name, repeats=repeats, shift="other", sizes=sizes, policy=spec)
-            add(
-                f"{shown}: whole {label} search, no counterfactual ({r['candidates']} edits)",
-                f"{r['batched_s'] * 1000:.1f} ms",
-                f"< {max_s * 1000:.0f} ms",
-                r["batched_s"] < max_s,
-            )
-        for shift in ("other", "distractor_ti"):
-            r = bench_world(name, repeats=repeats, shift=shift, sizes=(1, 2), policy=spec)
-            add(
-                f"{shown}: size 1 + 2 search on {shift}, batched vs naive one-at-a-time loop "
+def search_rows(name: str, bench: WorldBench, repeats: int) -> list[Row]:
+    """The whole search against its target, then per shift the batched search against the
+    naive loop and against its forward-pass bound."""
+    spec, who = bench.policy, shown(name, bench)
+    rows: list[Row] = []
+    if bench.whole_search is not None:
+        sizes, max_s = bench.whole_search
+        label = " + ".join(f"size {k}" for k in sizes)
+        # `other` has no counterfactual: the search really runs every size to the end
+        r = bench_world(name, repeats=repeats, shift="other", sizes=sizes, policy=spec)
+        what = f"{who}: whole {label} search, no counterfactual ({r['candidates']} edits)"
+        ms = f"{r['batched_s'] * 1000:.1f} ms"
+        rows.append((what, ms, f"< {max_s * 1000:.0f} ms", r["batched_s"] < max_s))
+    for shift in ("other", "distractor_ti"):
+        r = bench_world(name, repeats=repeats, shift=shift, sizes=(1, 2), policy=spec)
+        rows.append(
+            (
+                f"{who}: size 1 + 2 search on {shift}, batched vs naive one-at-a-time loop "
                 f"({r['candidates']} edits: {r['batched_s'] * 1000:.1f} vs "
                 f"{r['naive_s'] * 1000:.1f} ms; {r['per_s']:.0f} candidates/s)",
                 f"{r['ratio']:.1f}x",
                 f">= {MIN_RATIO:.0f}x",
                 r["ratio"] >= MIN_RATIO,
             )
-            add(
-                f"{shown}: the same search vs its forward-pass bound ({r['evaluated']} "
+        )
+        rows.append(
+            (
+                f"{who}: the same search vs its forward-pass bound ({r['evaluated']} "
                 f"candidate-steps at {r['forward_per_s']:.0f} frames/s through the policy: "
                 f"{r['bound_s'] * 1000:.1f} ms over {r['passes']} batched passes)",
                 f"{r['to_bound']:.2f}x",
                 f"<= {MAX_TO_BOUND:.0f}x",
                 r["to_bound"] <= MAX_TO_BOUND,
             )
-        run_s = bench_run(name, policy=spec)
-        add(
-            f"{shown}: `dfa run` end to end, policy loaded",
-            f"{run_s:.1f} s",
-            "< 30 s",
-            run_s < 30,
         )
-        if spec is None:  # the costs of finetuning and the experiment: the project's own policies
-            costs(name, run_s)
-    if page:
-        from dfa_viz.bench.page import bench_page
+    return rows
 
-        for key, value in bench_page().items():
-            shown = f"{value:.3g}" if isinstance(value, float) else str(value)
-            if key in PAGE_TARGETS:
-                limit = PAGE_TARGETS[key]
-                add(f"page: {key}", shown, f"<= {limit:g}", float(value) <= limit)
-            else:
-                add(f"page: {key}", shown)
+
+def world_rows(name: str, args: BenchArgs) -> list[Row]:
+    """Every figure of one world, in order: its sweep, its learned prior, its searches (or the
+    search at scale), `dfa run` end to end, and the costs of its base policy's use."""
+    from dfa_viz.bench.costs import cost_rows
+
+    bench = BENCHES.get(name, WorldBench())
+    rows: list[Row] = list(sweep_rows(name)) if name in SWEPT else []
+    if name in PAPER_WORLDS:  # the learned search prior on planted size-2 tasks
+        rows += prior_rows(bench_prior(name, n_eval=args.prior_tasks))
+    if bench.at_scale:
+        from dfa_viz.bench.tabletop import bench_rows, bench_tabletop
+
+        figures = bench_tabletop(repeats=args.repeats)
+        rows += [(f"{name}: {w}", v, t, ok) for w, v, t, ok in bench_rows(figures)]
+    if bench.searches:
+        rows += search_rows(name, bench, args.repeats)
+    run_s = bench_run(name, policy=bench.policy)
+    if bench.searches:
+        what = f"{shown(name, bench)}: `dfa run` end to end, policy loaded"
+        rows.append((what, f"{run_s:.1f} s", "< 30 s", run_s < 30))
+    if bench.policy is None:  # the costs of finetuning and the experiment: own policies only
+        rrd = Path("recordings") / "bench" / files.safe_name(f"{name}-object_ti-seed0.rrd")
+        rows += cost_rows(name, run_s, rrd, repeats=args.repeats)
+    return rows
+
+
+def page_rows() -> list[Row]:
+    """The web page's figures in Chromium, each against its target where it has one."""
+    from dfa_viz.bench.page import bench_page
+
+    rows: list[Row] = []
+    for key, value in bench_page().items():
+        shown = f"{value:.3g}" if isinstance(value, float) else str(value)
+        limit = PAGE_TARGETS.get(key)
+        ok = None if limit is None else float(value) <= limit
+        rows.append((f"page: {key}", shown, "" if limit is None else f"<= {limit:g}", ok))
+    return rows
+
+
+def write_rows(rows: list[tuple[str, str, str, str]], out: Path) -> None:
+    """Print the table and write it to `out` as Markdown."""
     console = Console()
     table = Table(title=f"dfa bench — {machine()}")
     for col in ("figure", "value", "target", "met"):
@@ -145,4 +173,17 @@ def run_bench(args: BenchArgs) -> list[tuple[str, str, str, str]]:
     md += [f"| {' | '.join(r)} |" for r in rows]
     files.write_text(out, "\n".join(md) + "\n")
     console.print(f"written to {out}")
+
+
+def run_bench(args: BenchArgs) -> list[tuple[str, str, str, str]]:
+    """Measure, print a table, and write it as Markdown to `args.out`.
+
+    Rows are (what, value, target, met). The page figures need Chromium and take a minute or
+    two; they are measured when `args.page` is set.
+    """
+    measured = [row for name in args.worlds for row in world_rows(name, args)]
+    if args.page:
+        measured += page_rows()
+    rows = [(w, v, t, "" if ok is None else ("yes" if ok else "NO")) for w, v, t, ok in measured]
+    write_rows(rows, args.out)
     return rows

@@ -70,13 +70,7 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
     """
     world = get_world("tabletop")
     policy = base_policy(world)
-    # a distractor task with two distractors: every slot present, the most single edits
-    k = 0
-    while True:
-        task, _ = failing_test_task(world, policy, "distractor_ti", seed + k)
-        if all(o.present for o in task.scene.objects):
-            break
-        k += 1
+    task = _full_task(world, policy, seed)
     demo = world.demonstrate(task)
     edits = singles(world.space, task.scene)
     eps = world.epsilon
@@ -91,44 +85,10 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         return world.render_batch(world.apply_batch(task.scene, edits))
 
     render_s, _ = best_of(edit_render, repeats)
-
-    double = planted_shift_task(world, seed, 2)
-    double_demo = world.demonstrate(double)
-    config = SearchConfig.for_world(world)
-    pairs_s, result = best_of(
-        lambda: counterfactual_search(world, policy, double.scene, double_demo, config=config),
-        repeats,
-    )
-    n_singles = sum(c.edit.size == 1 for c in result.tried)
-    rank = next(
-        (i - n_singles + 1 for i, c in enumerate(result.tried) if c.valid and c.edit.size == 2),
-        None,
-    )
-
-    triple = planted_shift_task(world, seed, 3)
-    triple_demo = world.demonstrate(triple)
+    pairs = _first_valid(world, policy, seed, 2, SearchConfig.for_world(world), repeats)
     config3 = SearchConfig(max_size=3, first_only=True, max_candidates=None)
-    triples_s, found3 = best_of(
-        lambda: counterfactual_search(world, policy, triple.scene, triple_demo, config=config3), 1
-    )
-    before3 = sum(c.edit.size < 3 for c in found3.tried)
-    rank3 = next(
-        (i - before3 + 1 for i, c in enumerate(found3.tried) if c.valid and c.edit.size == 3),
-        None,
-    )
-
-    sample = [edits[i] for i in np.linspace(0, len(edits) - 1, NAIVE_SAMPLE).astype(int)]
-    world.compositing = False  # the naive loop renders with MuJoCo
-    try:
-        naive_candidate(world, policy, task.scene, demo, sample[0])  # warm: batch-1 kernels
-        naive_s, naive_valid = best_of(
-            lambda: [naive_candidate(world, policy, task.scene, demo, e) for e in sample], repeats
-        )
-        naive_per = naive_s / len(sample)
-    finally:
-        world.compositing = True
-    batched = {c.edit: c.valid for c in cands}
-    assert naive_valid == [batched[e] for e in sample], "naive and batched candidates disagree"
+    triples = _first_valid(world, policy, seed, 3, config3, 1)
+    naive_per, sampled = _naive(world, policy, task, demo, edits, cands, repeats)
     batched_per = singles_s / len(edits)
     figures: dict = {}
     if exhaustive:
@@ -138,26 +98,70 @@ def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) 
         "singles": len(edits),
         "singles_s": singles_s,
         "edit_render_ms": render_s / len(edits) * 1e3,
-        "pairs_first_valid_s": pairs_s,
-        "pairs_found_size": result.size,
-        "pairs_tried": len(result.tried) - n_singles,
-        "pairs_rank_of_first_valid": rank,
-        "pairs_edit": str(result.best.edit) if result.best else None,
-        "triples_first_valid_s": triples_s,
-        "triples_found_size": found3.size,
-        "triples_total": count(world.space, triple.scene, 3),
-        "triples_tried": len(found3.tried) - before3,
-        "triples_rank_of_first_valid": rank3,
-        "triples_edit": str(found3.best.edit) if found3.best else None,
+        **{f"pairs_{k}": v for k, v in pairs.items() if k != "total"},
+        **{f"triples_{k}": v for k, v in triples.items()},
         "naive_per_candidate_s": naive_per,
-        "naive_sampled": len(sample),
+        "naive_sampled": sampled,
         "batched_per_candidate_s": batched_per,
         "ratio": naive_per / batched_per,
         "note": (
-            f"naive time measured on {len(sample)} candidates and extrapolated per candidate; "
+            f"naive time measured on {sampled} candidates and extrapolated per candidate; "
             f"best of {repeats} for every figure"
         ),
     }
+
+
+def _full_task(world, policy, seed: int) -> Task:
+    """The first failing distractor task from `seed` on with both distractors: every slot
+    present, the most single edits."""
+    k = 0
+    while True:
+        task, _ = failing_test_task(world, policy, "distractor_ti", seed + k)
+        if all(o.present for o in task.scene.objects):
+            return task
+        k += 1
+
+
+def _first_valid(world, policy, seed: int, size: int, config: SearchConfig, repeats: int) -> dict:
+    """The search of a planted shift of `size` to its first valid edit: first_valid_s, the
+    size found, the edits of `size` in all and tried, the first valid one's rank among them
+    in prior order, and that edit."""
+    task = planted_shift_task(world, seed, size)
+    demo = world.demonstrate(task)
+    seconds, result = best_of(
+        lambda: counterfactual_search(world, policy, task.scene, demo, config=config), repeats
+    )
+    before = sum(c.edit.size < size for c in result.tried)
+    rank = next(
+        (i - before + 1 for i, c in enumerate(result.tried) if c.valid and c.edit.size == size),
+        None,
+    )
+    return {
+        "first_valid_s": seconds,
+        "found_size": result.size,
+        "total": count(world.space, task.scene, size),
+        "tried": len(result.tried) - before,
+        "rank_of_first_valid": rank,
+        "edit": str(result.best.edit) if result.best else None,
+    }
+
+
+def _naive(world, policy, task: Task, demo, edits, batched, repeats: int) -> tuple[float, int]:
+    """Seconds per candidate of the naive loop (edit in place, one MuJoCo render, a batch-1
+    forward) on NAIVE_SAMPLE of `edits`, and the candidates timed; its verdicts must be the
+    batched candidates' (`batched`)."""
+    sample = [edits[i] for i in np.linspace(0, len(edits) - 1, NAIVE_SAMPLE).astype(int)]
+    world.compositing = False  # the naive loop renders with MuJoCo
+    try:
+        naive_candidate(world, policy, task.scene, demo, sample[0])  # warm: batch-1 kernels
+        naive_s, naive_valid = best_of(
+            lambda: [naive_candidate(world, policy, task.scene, demo, e) for e in sample], repeats
+        )
+    finally:
+        world.compositing = True
+    valid = {c.edit: c.valid for c in batched}
+    assert naive_valid == [valid[e] for e in sample], "naive and batched candidates disagree"
+    return naive_s / len(sample), len(sample)
 
 
 def bench_rows(r: dict) -> list[tuple[str, str, str, bool | None]]:
