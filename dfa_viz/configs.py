@@ -245,6 +245,9 @@ class ServeArgs:
     """The policy to diagnose in --world instead of its base policy (as for `dfa run`)."""
     weights: Path | None = None
     """Finetuned weights dfa saved for --policy (as for `dfa run`)."""
+    demos: Path | None = None
+    """A LeRobotDataset folder whose episodes the page offers as demonstrations: those that
+    start from the task's scene (every one, for a dataset that names no scenes)."""
     out: Path = Path("recordings")
     """Folder for the recordings and new sessions."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)

@@ -5,8 +5,9 @@
     start(...) -> App                       non-blocking (tests, benchmarks); App.stop()
 
 Modules: sessions (the JSON-lines session folder), state (the shared loop state machine), work
-(the jobs, composed from policy/search/recording), demonstrate (per-world input), frames and
-plots (what is drawn), page/compare/feedback/canvas/tables (one tab's GUI), server.
+(the jobs, composed from policy/search/recording), demonstrate (per-world input), episodes (a
+LeRobotDataset's episodes offered as demonstrations, `dfa serve --demos`), frames and plots
+(what is drawn), page/compare/feedback/canvas/tables/picker (one tab's GUI), server.
 """
 
 from __future__ import annotations

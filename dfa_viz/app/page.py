@@ -18,6 +18,7 @@ from dfa_viz.app.canvas import Canvas
 from dfa_viz.app.compare import ComparePanel
 from dfa_viz.app.controls import SEED, Checked, hidden, one_of
 from dfa_viz.app.feedback import FeedbackSection
+from dfa_viz.app.picker import EpisodePicker
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.sweep import SweepTab
 from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
@@ -92,6 +93,7 @@ class Page:
             self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
             self.clear = gui.add_button("Clear", icon=viser.Icon.TRASH)
             self.expert = gui.add_button("Ask the expert", icon=viser.Icon.ROBOT)
+            self.picker = EpisodePicker(client, state, self._guard)  # dfa serve --demos
 
         self.diag_folder = gui.add_folder("4 · Diagnose", visible=False)
         with self.diag_folder:
@@ -246,6 +248,7 @@ class Page:
             b.disabled = busy
         self.use_demo.disabled = busy or not view.demo_ready
         self.expert.disabled = busy
+        self.picker.refresh(view)
         self.diag_folder.visible = run is not None and stage in ("diagnose", "feedback", "adapted")
         self.adapt_folder.visible = run is not None and stage in ("feedback", "adapted")
         unmarked = run is not None and bool(run.unmarked())

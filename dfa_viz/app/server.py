@@ -24,6 +24,7 @@ import viser
 import websockets.asyncio.server
 
 from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_port, url
+from dfa_viz.app.episodes import DemoEpisodes, open_demos
 from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState, Policies
@@ -62,10 +63,11 @@ def open_state(
     adapt: AdaptConfig = AdaptConfig(),
     policy: str | None = None,
     weights: Path | None = None,
+    demos: DemoEpisodes | None = None,
 ) -> LoopState:
     """The loop state of a session folder (resumed), or of a new one under out/sessions/;
     `policy` (a policy.outside spec, with finetuned `weights` for it) is diagnosed in `world`
-    instead of its base policy."""
+    instead of its base policy; `demos`: the dataset whose episodes the page offers."""
     # the registered name (one world, one name: a "module:Class" names its world): an unknown
     # world is one line, before anything is created
     world = check_world_name(world)
@@ -79,7 +81,7 @@ def open_state(
         for note in sess.notes:
             print(f"dfa serve: {note}", flush=True)
         policies = Policies(spec=policy, world=world, weights=weights)
-        return LoopState(sess, out=out, adapt_config=adapt, policies=policies)
+        return LoopState(sess, out=out, adapt_config=adapt, policies=policies, demos=demos)
     except BaseException:
         sess.close()
         raise
@@ -298,6 +300,7 @@ def wait_idle(state: LoopState, *, timeout_s: float = 600.0) -> None:
 def serve(args: ServeArgs) -> None:
     """Serve the page until interrupted (Ctrl-C); the session folder keeps everything."""
     serving_port(args.host, args.port)  # a bad --host or --port: before any folder is made
+    demos = open_demos(args.demos)  # a bad --demos folder too
     state = open_state(
         world=args.world,
         session=args.session,
@@ -305,6 +308,7 @@ def serve(args: ServeArgs) -> None:
         adapt=args.adapt,
         policy=args.policy,
         weights=args.weights,
+        demos=demos,
     )
     app = start(port=args.port, host=args.host, state=state)
     _block(app)

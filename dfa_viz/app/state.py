@@ -13,8 +13,8 @@ pressing the same button start one job); subscribers (the tabs) are called outsi
 with the set of things that changed. An event that would not apply is refused before it is
 written, so every line of the log replays. Once closed, nothing more is written.
 
-The values of an action (a world, shift, seed, tie, mark, number of sweep tasks) are checked
-here against what the page offers, whoever calls: a tab can send any value.
+The values of an action (a world, shift, seed, tie, mark, number of sweep tasks, dataset
+episode) are checked here against what the page offers, whoever calls: a tab can send any value.
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from pathlib import Path
 
 from dfa_viz.app import events as E
 from dfa_viz.app.demonstrate import DemoInput, input_for
+from dfa_viz.app.episodes import DemoEpisodes, chosen
 from dfa_viz.app.jobs import Cancelled, Jobs
 from dfa_viz.app.sessions import Session, SessionError
 from dfa_viz.app.view import View
@@ -97,8 +98,11 @@ class LoopState:
         out: Path = Path("recordings"),
         adapt_config: AdaptConfig = AdaptConfig(),
         policies: Policies | None = None,
+        demos: DemoEpisodes | None = None,
     ) -> None:
         self.session = session
+        self.demos = demos
+        """The dataset whose episodes the page offers as demonstrations (`dfa serve --demos`)."""
         self.out = Path(out)
         self.adapt = adapt_config.check()
         self.policies = policies or Policies()
@@ -397,19 +401,23 @@ class LoopState:
     def demo_clear(self) -> None:
         self._demo_edit(lambda d: d.clear())
 
-    def demonstrate(self, *, expert: bool) -> bool:
-        """Take the user's demonstration (or the expert's), save it, and start the search. One
-        that does not do what the task asks is refused, with the reason."""
+    def demonstrate(self, *, expert: bool = False, episode: int | None = None) -> bool:
+        """Take the user's demonstration (or the expert's, or `episode` of the --demos dataset:
+        one the page offers for this task), save it, and start the search. One that does not do
+        what the task asks is refused, with the reason."""
         with self._lock:
             rec = E.need(self.record, "demonstrate")
-            d = self.demo_input
-            source = "expert" if expert else (d.kind if d else "")
-            if not expert and (d is None or not d.given()):
-                raise UserError("demonstrate first (or ask the expert)")
-            if not expert and not d.ready():
-                raise UserError(d.problem())
             world = get_world(rec.world)
-            make = (lambda: world.demonstrate(rec.task)) if expert else d.trajectory
+            d = self.demo_input
+            if episode is not None:
+                source, make = chosen(self.demos, world, rec.task, episode)
+            else:
+                source = "expert" if expert else (d.kind if d else "")
+                if not expert and (d is None or not d.given()):
+                    raise UserError("demonstrate first (or ask the expert)")
+                if not expert and not d.ready():
+                    raise UserError(d.problem())
+                make = (lambda: world.demonstrate(rec.task)) if expert else d.trajectory
 
             def job() -> None:
                 self.jobs.progress(0.0, "saving the demonstration")
