@@ -6,6 +6,7 @@ place, renders it once and runs a batch-1 forward per candidate.
 
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
@@ -55,6 +56,45 @@ def _steps(cands) -> int:
     return int(sum(np.isfinite(c.distances).sum() for c in cands))
 
 
+def _cold(comp, fn):
+    """fn with nothing drawn before: the views in memory and on disk ignored."""
+
+    def run():
+        comp.clear()
+        store, comp.store = comp.store, None
+        try:
+            return fn()
+        finally:
+            comp.store = store
+
+    return run
+
+
+def _stored(comp, fn):
+    """fn as a later process starts it: the views read from disk."""
+
+    def run():
+        comp.reopen()
+        return fn()
+
+    return run
+
+
+def _agree(everything: list[Edit], result, mj_all, cands, mj, naive_valid: dict) -> None:
+    """The composited search tried every edit and agrees with MuJoCo's (every distance) and
+    with the naive loop (every sampled verdict)."""
+    tried = [c.edit for c in result.tried]
+    assert sorted(map(str, tried)) == sorted(map(str, everything)), "the search missed edits"
+    same = [c.edit for c in mj_all.tried] == tried and all(
+        np.array_equal(a.distances, b.distances, equal_nan=True)
+        for a, b in zip(mj_all.tried, result.tried, strict=True)
+    )
+    assert same and [c.distances[0] for c in mj] == [c.distances[0] for c in cands]
+    by_edit = {c.edit: c.valid for c in result.tried}
+    bad = [e for e, ok in naive_valid.items() if ok != by_edit[e]]
+    assert not bad, "naive and batched candidates disagree"
+
+
 def bench_other(
     world, policy: Policy, *, repeats: int = 3, seed: int = 0, max_size: int = 2
 ) -> dict:
@@ -79,24 +119,7 @@ def bench_other(
     everything = [e for k in range(1, max_size + 1) for e in combinations(world.space, scene, k)]
     frames = world.render_batch([world.apply(scene, e) for e in everything])  # (N, 80, 80, 3)
     comp = world._compositor
-
-    def cold(fn):  # nothing drawn before: the views in memory and on disk ignored
-        def run():
-            comp.clear()
-            store, comp.store = comp.store, None
-            try:
-                return fn()
-            finally:
-                comp.store = store
-
-        return run
-
-    def stored(fn):  # as a later process starts: the views read from disk
-        def run():
-            comp.reopen()
-            return fn()
-
-        return run
+    cold, stored = functools.partial(_cold, comp), functools.partial(_stored, comp)
 
     def run_singles():
         return rollout_lockstep(world, policy, scene, demo, one, epsilon=eps)
@@ -150,15 +173,7 @@ def bench_other(
         r["naive_sampled"] = len(sample)
     finally:
         world.compositing = True
-    tried = [c.edit for c in result.tried]
-    assert sorted(map(str, tried)) == sorted(map(str, everything)), "the search missed edits"
-    same = [c.edit for c in mj_all.tried] == tried and all(
-        np.array_equal(a.distances, b.distances, equal_nan=True)
-        for a, b in zip(mj_all.tried, result.tried, strict=True)
-    )
-    assert same and [c.distances[0] for c in mj] == [c.distances[0] for c in cands]
-    by_edit = {c.edit: c.valid for c in result.tried}
-    assert naive_valid == [by_edit[e] for e in sample], "naive and batched candidates disagree"
+    _agree(everything, result, mj_all, cands, mj, dict(zip(sample, naive_valid, strict=True)))
     for k in ("singles", "all"):
         r[f"{k}_bound_s"] = float(np.median(bounds[k]))
     r["forward_per_s"] = _steps(result.tried) / r["all_bound_s"]
