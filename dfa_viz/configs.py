@@ -11,11 +11,22 @@ from typing import Annotated, Literal
 
 import tyro
 
-from dfa_viz.experiment.explain import EXPLAINERS
-from dfa_viz.experiment.explain import SHIFTS as EXPLAIN_SHIFTS
-from dfa_viz.experiment.explain import WORLDS as EXPLAIN_WORLDS
 from sim import PAPER_WORLDS
 from sim.core import UserError
+
+EXPLAINERS = (
+    "counterfactual",
+    "integrated_gradients",
+    "occlusion",
+    "grad_cam",
+    "kernel_shap",
+    "random",
+)
+"""The explanation benchmark's explainers: the search, policy.saliency.METHODS in their order,
+and the floor; spelled out so that the command line's defaults load no PyTorch (test_explain
+holds the middle to METHODS)."""
+EXPLAIN_SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
+EXPLAIN_WORLDS = PAPER_WORLDS
 
 
 @dataclass(frozen=True)

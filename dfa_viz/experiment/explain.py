@@ -25,21 +25,12 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
-from sim import PAPER_WORLDS
+from dfa_viz.configs import EXPLAIN_SHIFTS as SHIFTS
+from dfa_viz.configs import EXPLAIN_WORLDS as WORLDS
+from dfa_viz.configs import EXPLAINERS
 
 if TYPE_CHECKING:
     from dfa_viz.experiment.experiment import Summary
-
-EXPLAINERS = (
-    "counterfactual",
-    "integrated_gradients",
-    "occlusion",
-    "grad_cam",
-    "kernel_shap",
-    "random",
-)
-"""The search, policy.saliency.METHODS in their order, and the floor: spelled out so that the
-command line's defaults load no PyTorch (test_explain holds the middle to METHODS)."""
 
 
 def explainer_names() -> dict[str, str]:
@@ -49,8 +40,6 @@ def explainer_names() -> dict[str, str]:
     return {"counterfactual": "Counterfactual search", **METHOD_NAMES, "random": "Random"}
 
 
-SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
-WORLDS = PAPER_WORLDS
 # the columns of tasks.csv, in order; the first four are a row's key
 COLUMNS = (
     "world",

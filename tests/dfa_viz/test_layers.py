@@ -1,0 +1,85 @@
+"""The shape of dfa_viz: a core (the loop, users, configs, the recording) that loads no client
+(the page, the sweep, the experiments, the study, the bench, the LeRobot commands), and no
+import circle at module level."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import dfa_viz
+
+CLIENTS = ("app", "sweep", "experiment", "study", "bench", "lerobot", "cli", "assemble")
+ROOT = Path(dfa_viz.__file__).parent
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _top_level_imports(path: Path, name: str) -> set[str]:
+    """The dfa_viz modules `path` imports when it is imported (not inside functions, not
+    under `if TYPE_CHECKING:`)."""
+    tree = ast.parse(path.read_text())
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*up, *([base] if base else [])])
+            out.add(base)
+            out |= {f"{base}.{a.name}" for a in node.names}
+    return {m for m in out if m.split(".")[0] == "dfa_viz"}
+
+
+def _graph() -> dict[str, set[str]]:
+    paths = {_module(p): p for p in ROOT.rglob("*.py")}
+    graph = {}
+    for name, path in paths.items():
+        targets = set()
+        for m in _top_level_imports(path, name):
+            if m in paths:
+                targets.add(m)
+            parts = m.split(".")  # importing a.b.c runs a and a.b first
+            targets |= {".".join(parts[:k]) for k in range(1, len(parts))} & set(paths)
+        graph[name] = targets - {name}
+    return graph
+
+
+def test_no_import_circle_at_module_level():
+    graph = _graph()
+    state: dict[str, int] = {}
+    circles = []
+
+    def visit(node: str, path: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                circles.append([*path[path.index(nxt) :], nxt])
+            elif nxt not in state:
+                visit(nxt, [*path, nxt])
+        state[node] = 2
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+    # a package's __init__ importing its own modules is how a package is made, not a circle
+    real = [c for c in circles if not all(m.startswith(c[0]) or c[0].startswith(m) for m in c)]
+    assert real == [], real
+
+
+def test_importing_the_loop_loads_no_client():
+    code = (
+        "import sys, dfa_viz.loop, dfa_viz.recording, dfa_viz.users, dfa_viz.configs; "
+        f"print(sorted(m for m in sys.modules if m.split('.')[1:2] and "
+        f"m.split('.')[0] == 'dfa_viz' and m.split('.')[1] in {CLIENTS!r}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout
