@@ -8,7 +8,6 @@ import fcntl
 import json
 import os
 import pty
-import resource
 import struct
 import subprocess
 import sys
@@ -154,26 +153,30 @@ def test_the_base_policy_is_cloned_in_view_and_draws_are_limited(tmp_path):
         assert stdout.strip().splitlines()[-1].strip().startswith("recording:")
 
 
+LIMITED = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, ({limit}, {limit}))
+from dfa_viz.cli import main
+code = main(sys.argv[1:])
+peak_kb = int(open("/proc/self/status").read().split("VmHWM:")[1].split()[0])
+print("peak", peak_kb * 1024)
+sys.exit(code)
+"""
+
+
 def _limited(args: list[str], limit_bytes: int) -> tuple[int, str, int]:
-    """Run `args` with its address space limited: (exit code, stderr, peak resident bytes)."""
-
-    def limit() -> None:
-        resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
-
+    """Run `dfa ARGS` with its address space limited: (exit code, stderr, peak resident bytes).
+    The peak is the child's own high-water mark since its exec (VmHWM), not ru_maxrss, which
+    keeps the resident size of the test process it was forked from."""
     env = {**os.environ, "MALLOC_ARENA_MAX": "2"}  # glibc's arenas reserve address space
-    proc = subprocess.Popen(
-        args,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        preexec_fn=limit,
-        env=env,
+    out = subprocess.run(
+        [sys.executable, "-c", LIMITED.format(limit=limit_bytes), *args],
+        capture_output=True,
         text=True,
+        env=env,
+        timeout=600,
     )
-    with proc.stderr:
-        err = proc.stderr.read()
-    _, status, usage = os.wait4(proc.pid, 0)  # this child's own peak, not all children's
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, err, usage.ru_maxrss * 1024
+    return out.returncode, out.stderr, int(out.stdout.split("peak")[1])
 
 
 def test_frames_too_large_are_one_line_before_memory_is_spent(tmp_path):
@@ -182,7 +185,6 @@ def test_frames_too_large_are_one_line_before_memory_is_spent(tmp_path):
     the program's own imports."""
     code, err, peak = _limited(
         [
-            *DFA,
             "run",
             "--world",
             "minigrid:MiniGrid-MultiRoom-N6-v0:tile=64",
