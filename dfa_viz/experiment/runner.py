@@ -29,6 +29,7 @@ from dfa_viz.configs import AdaptConfig, Finetuning
 from dfa_viz.experiment.conditions import (
     CONDITIONS,
     SHIFT_KINDS,
+    Choice,
     choose,
     concept_named,
     right_concept,
@@ -211,17 +212,20 @@ def nh_random_variants(world: World, prep: Prepared, config: AdaptConfig, seed: 
     return A.render(world, srcs, chosen)
 
 
-def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]:
-    """Run one spec; returns its runs.csv row (values as strings) plus its wall time
-    `duration_s`, the CPU time of this process `cpu_s` (what the run costs on an idle core)
-    and `host` (host:pid of the worker)."""
-    from dfa_viz.loop import adapt
-    from policy.evaluate import score
-    from sim import get_world
+@dataclass(frozen=True)
+class Taken:
+    """What a run's condition made of its failure: the prepared task, the concept chosen, the
+    feedback on it (empty for NH random) and, for NH random, the variants drawn instead."""
 
-    t0, cpu0 = time.perf_counter(), time.process_time()
-    world = get_world(spec.world)
-    config = settings.config(spec.budget)
+    prep: Prepared
+    choice: Choice
+    feedback: Feedback
+    augmented: list[Trajectory] | None
+    cf_edit: str
+
+
+def take_feedback(world: World, spec: RunSpec, settings: Settings) -> Taken:
+    """A run's steps up to adaptation, the same wherever the run is made or made again."""
     n_eval = settings.finetuning.n_eval
     prep = prepare(spec.world, spec.shift, spec.seed, n_eval)
     cf_concepts, cf_edit = None, ""
@@ -237,10 +241,29 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         offered=cf_concepts,
     )
     if choice.concept is None:
-        feedback, augmented = Feedback(), nh_random_variants(world, prep, config, spec.seed)
-    else:
-        concept = concept_named(prep.visible, choice.concept)
-        feedback, augmented = feedback_over(world, prep.task, concept), None
+        config = settings.config(spec.budget)
+        return Taken(
+            prep, choice, Feedback(), nh_random_variants(world, prep, config, spec.seed), cf_edit
+        )
+    concept = concept_named(prep.visible, choice.concept)
+    return Taken(prep, choice, feedback_over(world, prep.task, concept), None, cf_edit)
+
+
+def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]:
+    """Run one spec; returns its runs.csv row (values as strings) plus its wall time
+    `duration_s`, the CPU time of this process `cpu_s` (what the run costs on an idle core)
+    and `host` (host:pid of the worker)."""
+    from dfa_viz.loop import adapt
+    from policy.evaluate import score
+    from sim import get_world
+
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    world = get_world(spec.world)
+    config = settings.config(spec.budget)
+    n_eval = settings.finetuning.n_eval
+    taken = take_feedback(world, spec, settings)
+    prep, choice, feedback, augmented = taken.prep, taken.choice, taken.feedback, taken.augmented
+    cf_edit = taken.cf_edit
     adaptation = adapt(
         world,
         _policy(spec.world),

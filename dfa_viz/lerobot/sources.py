@@ -27,7 +27,7 @@ from pathlib import Path
 from dfa_viz.lerobot.episodes import edit_between, episode, run_episodes, variant_source
 from policy import Policy, training_demos
 from sim import get_world
-from sim.core import Change, Edit, Feedback, Trajectory, UserError, World
+from sim.core import Change, Edit, Trajectory, UserError, World
 from sim.lerobot import Episode
 
 KINDS = {"session.jsonl": "session", "sweep.csv": "sweep", "runs.csv": "q2"}
@@ -177,7 +177,6 @@ def sweep_episodes(
 def q2_episodes(folder: Path) -> Iterator[tuple[World, Episode]]:
     from dfa_viz.configs import Finetuning
     from dfa_viz.experiment import runner as R
-    from dfa_viz.experiment.conditions import choose, concept_named
     from dfa_viz.loop import augmentation
     from policy import base_policy
 
@@ -199,37 +198,14 @@ def q2_episodes(folder: Path) -> Iterator[tuple[World, Episode]]:
                 f"base policy fails task seed {prep.task.seed} first, so its data differ"
             )
         config = settings.config(spec.budget)
-        offered = None
-        if spec.condition == "cf_h":
-            offered = R.offered(spec.world, spec.shift, spec.seed, n_eval, settings.max_size)[0]
-        choice = choose(
-            spec.condition,
-            world=spec.world,
-            shift=spec.shift,
-            seed=spec.seed,
-            right=prep.right,
-            visible=tuple(c.name for c in prep.visible),
-            offered=offered,
-        )
-        if choice.concept is None:
-            augmented = R.nh_random_variants(world, prep, config, spec.seed)
-            feedback = None
-        else:
-            feedback = R.feedback_over(
-                world, prep.task, concept_named(prep.visible, choice.concept)
-            )
+        taken = R.take_feedback(world, spec, settings)
+        augmented, fb = taken.augmented, taken.feedback
+        if augmented is None:
             augmented = augmentation(
-                world,
-                prep.task,
-                prep.demo,
-                feedback,
-                config=config,
-                known=prep.known,
-                seed=spec.seed,
+                world, prep.task, prep.demo, fb, config=config, known=prep.known, seed=spec.seed
             )
         run = " ".join(str(v) for v in spec.key)
         task, demo = prep.task, prep.demo
-        fb = feedback if feedback is not None else Feedback()
         yield world, episode(world, demo, task, role="demonstration", run=run, feedback=fb)
         for v in augmented:
             src = variant_source(v, [demo, *prep.known])
