@@ -39,6 +39,7 @@ from collections.abc import Callable
 from policy.model import Origin, Policy
 from policy.obs import ObsSpec, said
 from sim.core import UserError
+from sim.registry import callable_name
 
 ENTRY_POINTS = "dfa.policies"
 ENV_LIST = "DFA_POLICIES"
@@ -51,12 +52,6 @@ _loaders: dict[str, Loader] = {}
 _lock = threading.RLock()
 _entry_points_read = False
 _env_read = ""  # the value of DFA_POLICIES last read
-
-
-def _said(loader: Loader) -> str:
-    if isinstance(loader, str):
-        return loader
-    return f"{getattr(loader, '__module__', '?')}:{getattr(loader, '__qualname__', loader)}"
 
 
 def register_policy_loader(prefix: str, loader: Loader) -> None:
@@ -76,8 +71,8 @@ def register_policy_loader(prefix: str, loader: Loader) -> None:
         old = _loaders.get(prefix)
         if old is not None and old != loader:
             raise UserError(
-                f"a policy loader for {prefix}: is already registered ({_said(old)}); "
-                f"register {_said(loader)} under another prefix"
+                f"a policy loader for {prefix}: is already registered ({callable_name(old)}); "
+                f"register {callable_name(loader)} under another prefix"
             )
         _loaders[prefix] = loader
 
@@ -97,7 +92,8 @@ def _read_outside() -> None:
                     dist = getattr(ep.dist, "name", "a package")
                     raise UserError(
                         f"the {ENTRY_POINTS} entry point {ep.name} = {ep.value} of {dist} names "
-                        f"a prefix already registered ({_said(_loaders[ep.name])}); rename it"
+                        "a prefix already registered "
+                        f"({callable_name(_loaders[ep.name])}); rename it"
                     )
                 register_policy_loader(ep.name, ep.value)
         listed = os.environ.get(ENV_LIST, "")

@@ -46,7 +46,8 @@ _entry_points_read = False
 _env_read = ""  # the value of DFA_WORLDS last read
 
 
-def _said(factory: Factory) -> str:
+def callable_name(factory: Callable | str) -> str:
+    """ "module:qualname" of a callable, or the "module:attribute" string that names one."""
     if isinstance(factory, str):
         return factory
     return f"{getattr(factory, '__module__', '?')}:{getattr(factory, '__qualname__', factory)}"
@@ -65,8 +66,8 @@ def register_world(name: str, factory: Factory, *, prefix: bool = False) -> None
         old = table.get(name, other.get(name))
         if old is not None and (name in other or old != factory):
             raise UserError(
-                f"a world named {name!r} is already registered ({_said(old)}); "
-                f"register {_said(factory)} under another name"
+                f"a world named {name!r} is already registered ({callable_name(old)}); "
+                f"register {callable_name(factory)} under another name"
             )
         table[name] = factory
 
@@ -166,7 +167,8 @@ def _read_outside() -> None:
                 if ep.name in _factories and _factories[ep.name] != ep.value:
                     raise UserError(
                         f"the {ENTRY_POINTS} entry point {ep.name} = {ep.value} of {dist} names "
-                        f"a world already registered ({_said(_factories[ep.name])}); rename it"
+                        "a world already registered "
+                        f"({callable_name(_factories[ep.name])}); rename it"
                     )
                 register_world(ep.name, ep.value)
                 _outside.add(ep.name)
