@@ -14,7 +14,7 @@ from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
 from dfa_viz.experiment.experiment import Plan, run_experiment
 from dfa_viz.experiment.results import cf_beats_baseline, results_folder, summarise
 from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
 # a tiny experiment: one world, one shift, every condition, two budgets, one seed
@@ -139,7 +139,7 @@ def test_cli_rejects_unknown_worlds_and_experiments(tmp_path):
 
 # -- the parts ------------------------------------------------------------------------------------
 def test_the_paper_numbers_are_all_there():
-    for world in ("nav2d", "doorkey", "tabletop"):
+    for world in PAPER_WORLDS:
         for shift in ("object", "distractor"):
             assert 0 < ACCURACY[(world, shift)][0] < ACCURACY[(world, shift)][1] < 1
             for c in ("nh_random", "baseline_h", "cf_h", "oracle"):
