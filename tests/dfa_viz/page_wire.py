@@ -11,9 +11,12 @@ Client -> server: one msgpack dict per frame, {"type": "GuiUpdateMessage", "uuid
 
 from __future__ import annotations
 
+import json
+import socket
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -22,6 +25,7 @@ import websockets.exceptions
 import websockets.sync.client
 import zstandard
 
+CEILING_S = 1200.0  # a job takes seconds to minutes on two busy cores; this only ends a hang
 SUBPROTOCOL = f"viser-v{viser.__version__}"
 CAMERA = {
     "type": "ViewerCameraMessage",
@@ -170,3 +174,15 @@ class PageWire:
     def close(self) -> None:
         self.ws.close()
         self._reader.join(timeout=30)
+
+
+def free_port() -> int:
+    """A port on 127.0.0.1 free now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def session_events(folder: Path) -> list[dict]:
+    """The events of a page session folder's log, in order."""
+    return [json.loads(x) for x in (folder / "session.jsonl").read_text().splitlines()]

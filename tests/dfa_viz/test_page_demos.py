@@ -10,16 +10,14 @@ The dataset is made here by `dfa run --lerobot` on nav2d; the tabs are PageWire 
 
 from __future__ import annotations
 
-import json
 import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from page_wire import PageWire
+from page_wire import CEILING_S, PageWire, free_port, session_events
 
 from dfa_viz.app.episodes import DemoEpisodes
 from dfa_viz.app.picker import USE_EPISODE
@@ -32,20 +30,9 @@ from sim.lerobot.demo import SCENE
 pytestmark = pytest.mark.slow
 TINY = ["--budget", "3", "--steps", "10", "--n-eval", "2", "--max-size", "1"]
 QUICK = AdaptConfig(budget=3, finetuning=Finetuning(steps=10, n_eval=2))
-CEILING_S = 1200.0  # a job takes seconds to minutes on two busy cores; this only ends a hang
 # the run's dataset, in `dfa run --lerobot`'s order: the demonstration, 2 variants, the
 # counterfactuals, the failed rollout, the finetuned one; the task's own scene starts these
 STARTS_HERE = ("demonstration", "failed", "finetuned")
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _events(folder: Path) -> list[dict]:
-    return [json.loads(x) for x in (folder / "session.jsonl").read_text().splitlines()]
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +62,7 @@ def served(tmp_path):
             adapt=QUICK,
             demos=None if demos is None else DemoEpisodes(demos),
         )
-        app = start(port=_free_port(), state=state)
+        app = start(port=free_port(), state=state)
         apps.append(app)
         return app
 
@@ -169,7 +156,7 @@ def test_the_tasks_episodes_are_offered_and_the_chosen_one_is_replayed_and_saved
     assert np.array_equal(record.demo.observations[: ep.length], ep.frames)  # the replay's
     assert record.demo_source == f"{dataset} episode 0"
     assert str(record.edit).startswith("goal.shape: triangle")  # the planted cause
-    (demo,) = [e for e in _events(folder) if e["type"] == "demonstration"]
+    (demo,) = [e for e in session_events(folder) if e["type"] == "demonstration"]
     assert demo["source"] == f"{dataset} episode 0"
     assert (folder / demo["file"]).is_file()
 

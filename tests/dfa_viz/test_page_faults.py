@@ -9,19 +9,17 @@ Every wait is for what the page shows; its ceiling only ends a hang.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
 import pytest
-from page_wire import PageWire
+from page_wire import CEILING_S, PageWire, free_port, session_events
 
 from dfa_viz.app.feedback import TI, TR
 from dfa_viz.app.page import ASK_EXPERT, FINETUNE, NEXT_TASK
@@ -29,17 +27,6 @@ from dfa_viz.configs import AdaptConfig, Finetuning
 from sim.core import UserError
 
 QUICK = AdaptConfig(budget=5, finetuning=Finetuning(steps=20))
-CEILING_S = 1200.0  # a job takes seconds to minutes on two busy cores; this only ends a hang
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _events(folder: Path) -> list[dict]:
-    return [json.loads(x) for x in (folder / "session.jsonl").read_text().splitlines()]
 
 
 @pytest.fixture
@@ -49,7 +36,7 @@ def served(tmp_path):
     from dfa_viz.app.server import open_state
 
     state = open_state(session=tmp_path / "s", out=tmp_path / "rec", adapt=QUICK)
-    app = start(port=_free_port(), state=state)
+    app = start(port=free_port(), state=state)
     yield app, tmp_path / "s"
     app.stop()
 
@@ -119,18 +106,22 @@ def test_two_tabs_pressing_the_same_buttons_at_once_make_one_event_each(served, 
         a.close()
         b.close()
 
-    kinds = [e["type"] for e in _events(folder)]
+    kinds = [e["type"] for e in session_events(folder)]
     assert kinds == [
         "session",
         *("task", "judgement", "demonstration", "search", "mark", "finetune"),
         "task",
     ]
-    assert [e["seed"] for e in _events(folder) if e["type"] == "task"] == [0, 1]
+    assert [e["seed"] for e in session_events(folder) if e["type"] == "task"] == [0, 1]
     # one job each: one demonstration, one finetuned rollout, one checkpoint
     names = sorted(p.name for p in folder.iterdir())
-    assert [n for n in names if n.startswith("demo-")] == [_events(folder)[3]["file"]]
-    assert [n for n in names if n.startswith("finetuned-")] == [_events(folder)[6]["rollout_file"]]
-    assert [n for n in names if n.startswith("policy-")] == [_events(folder)[6]["policy_dir"]]
+    assert [n for n in names if n.startswith("demo-")] == [session_events(folder)[3]["file"]]
+    assert [n for n in names if n.startswith("finetuned-")] == [
+        session_events(folder)[6]["rollout_file"]
+    ]
+    assert [n for n in names if n.startswith("policy-")] == [
+        session_events(folder)[6]["policy_dir"]
+    ]
     # every press that came second was refused in one line ("not now", or "not offered now"
     # for a button already disabled), and nothing else was said
     pressed = ("Load task", "Failed", ASK_EXPERT, TI, FINETUNE, NEXT_TASK)
@@ -179,7 +170,7 @@ def test_a_late_press_of_a_step_that_is_over_is_not_taken_for_the_next(served):
         assert tab.enabled(NEXT_TASK)
     finally:
         tab.close()
-    kinds = [e["type"] for e in _events(folder)]
+    kinds = [e["type"] for e in session_events(folder)]
     assert kinds == ["session", "task", "judgement", "demonstration", "search", "mark", "finetune"]
     assert app.state.jobs.current is None
 
@@ -191,7 +182,7 @@ class Serve:
     def __init__(self, *args: str, cwd: Path) -> None:
         self.lines: list[str] = []
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "dfa_viz.cli", "serve", *args, "--port", str(_free_port())],
+            [sys.executable, "-m", "dfa_viz.cli", "serve", *args, "--port", str(free_port())],
             cwd=cwd,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -256,7 +247,7 @@ def test_sigterm_during_a_page_finetune_stops_cleanly_and_resumes(tmp_path):
     notes = [x for x in out.splitlines() if x.startswith("dfa serve:")]
     assert notes[-1] == f"dfa serve: stopped; the session is saved in {folder}", out
     # nothing of the cut finetune was written: no event, no rollout, no checkpoint
-    log = _events(folder)
+    log = session_events(folder)
     assert [e["type"] for e in log][-1] == "mark"
     assert not [p for p in folder.iterdir() if p.name.startswith(("finetuned-", "policy-"))]
 
@@ -281,7 +272,7 @@ def test_sigterm_during_a_page_finetune_stops_cleanly_and_resumes(tmp_path):
         second.kill()
     assert code == 0 and "Traceback" not in out, out
 
-    done = _events(folder)[-1]
+    done = session_events(folder)[-1]
     assert done["type"] == "finetune"
     assert done["policy_dir"] not in leftovers and done["rollout_file"] not in leftovers
     assert {p.name for p in (folder / done["policy_dir"]).iterdir()} == {
@@ -362,8 +353,8 @@ def test_forged_control_values_are_refused_in_one_line_and_never_acted_on(served
         tab.click("Load task")
         tab.wait(lambda: len(tab.notes) == n + 2, "the two refusals", CEILING_S)
         tab.wait_enabled("Failed", CEILING_S)
-        assert [e["type"] for e in _events(folder)] == ["session", "task"]
-        task = _events(folder)[1]
+        assert [e["type"] for e in session_events(folder)] == ["session", "task"]
+        task = session_events(folder)[1]
         assert (task["world"], task["shift"], task["seed"]) == ("nav2d", "distractor_ti", 0)
         assert app.state.sweep is None  # no sweep ran
         _same_page(tab, other)  # and neither tab shows a forged value
@@ -382,7 +373,7 @@ def test_forged_control_values_are_refused_in_one_line_and_never_acted_on(served
         assert note == f"Refused: {values[-1]} is not offered now"
         tab.click(TI)
         tab.wait(lambda: "variants may take" in tab.text(), "the TI mark", CEILING_S)
-        mark = _events(folder)[-1]
+        mark = session_events(folder)[-1]
         assert mark["type"] == "mark" and mark["acceptable"] == list(values)
         # the page's own changes (new ties, new options) are never taken for a tab's
         assert sum("minimal edit" in note for note in tab.notes) == 1

@@ -19,18 +19,13 @@ import viser
 import websockets.asyncio.server
 import websockets.exceptions
 import websockets.sync.client
+from page_wire import free_port
 
 from dfa_viz.app.address import DEFAULT_PORT, PageGuard, serving_port
 from sim.core import UserError
 
 SUBPROTOCOL = f"viser-v{viser.__version__}"  # what the page's client asks for
 SERVE = websockets.asyncio.server.serve  # start() swaps it only while viser binds
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _files(folder: Path) -> dict[str, tuple[bytes, int]]:
@@ -197,14 +192,14 @@ def page(tmp_path):
     """A served page (no task loaded) and its session log."""
     from dfa_viz.app import start
 
-    app = start(port=_free_port(), session=tmp_path / "s", out=tmp_path / "rec")
+    app = start(port=free_port(), session=tmp_path / "s", out=tmp_path / "rec")
     yield app, app.server.get_port(), tmp_path / "s" / "session.jsonl"
     app.stop()
 
 
 def test_foreign_origins_and_hosts_are_refused_before_the_socket_opens(page):
     app, port, log = page
-    other = _free_port()
+    other = free_port()
     before = _files(log.parent)
     own = f"http://127.0.0.1:{port}"
     for host, origin in [
@@ -372,7 +367,7 @@ def test_one_server_stays_within_bounded_memory_over_many_loops(tmp_path):
     printed: list[str] = []
     rss, threads = [], []
     with subprocess.Popen(
-        [sys.executable, "-c", SERVER_LOOPS, str(tmp_path / "s"), str(tmp_path), str(_free_port())],
+        [sys.executable, "-c", SERVER_LOOPS, str(tmp_path / "s"), str(tmp_path), str(free_port())],
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
