@@ -1,9 +1,11 @@
-"""95% intervals: Wilson's for a rate, Student's t for a mean."""
+"""95% intervals (Wilson's for a rate, Student's t and the bootstrap for a mean) and exact
+tests over independent units (the signed-rank test, Holm's correction, the units a test needs)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 Z95 = 1.959963984540054  # the two-sided 95% normal quantile
 
@@ -33,3 +35,112 @@ def t_interval(values: Sequence[float]) -> tuple[float, float, float]:
     sd = math.sqrt(math.fsum((v - mean) ** 2 for v in values) / (n - 1))
     half = float(t.ppf(0.975, n - 1)) * sd / math.sqrt(n)
     return (mean, mean - half, mean + half)
+
+
+# -- tests over independent units -----------------------------------------------------------------
+@dataclass(frozen=True)
+class SignedRank:
+    """The exact one-sided Wilcoxon signed-rank test of paired differences (H1: they lean > 0).
+
+    n: the differences that are not zero (zeros are dropped, Wilcoxon's way); positive: how many
+    of those are > 0; statistic: the sum of the positive ones' ranks (mid-ranks for ties);
+    p: P(statistic >= observed) over all 2^n equally likely signs, the ranks held as observed
+    (exact with ties too); 1.0 when n is 0. p_min = 1 / 2^n is the smallest p n differences
+    can give."""
+
+    n: int
+    positive: int
+    statistic: float
+    p: float
+
+    @property
+    def p_min(self) -> float:
+        return 0.5**self.n
+
+
+def signed_rank_exact(diffs: Sequence[float], *, decimals: int = 9) -> SignedRank:
+    """The exact one-sided signed-rank test of `diffs` (rounded to `decimals` first, so that
+    differences equal on paper are zeros and ties rather than float noise)."""
+    import numpy as np
+    from scipy.stats import rankdata
+
+    d = np.round(np.asarray(diffs, dtype=np.float64), decimals)
+    d = d[d != 0]
+    n = len(d)
+    if n == 0:
+        return SignedRank(0, 0, 0.0, 1.0)
+    twice = np.rint(2 * rankdata(np.abs(d))).astype(np.int64)  # mid-ranks doubled: integers
+    observed = int(twice[d > 0].sum())
+    ways = np.zeros(int(twice.sum()) + 1, dtype=np.float64)  # ways[t]: sign choices summing to t
+    ways[0] = 1.0
+    for r in twice:
+        shifted = np.zeros_like(ways)
+        shifted[r:] = ways[:-r]
+        ways = ways + shifted
+    p = float(ways[observed:].sum() / ways.sum())
+    return SignedRank(n, int((d > 0).sum()), observed / 2, p)
+
+
+def holm(ps: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values of `ps`, in their order: the k-th smallest times
+    (m - k + 1), never below an earlier one, at most 1."""
+    m = len(ps)
+    out = [0.0] * m
+    running = 0.0
+    for k, i in enumerate(sorted(range(m), key=lambda i: ps[i])):
+        running = max(running, min(1.0, (m - k) * ps[i]))
+        out[i] = running
+    return out
+
+
+def bootstrap_mean(
+    values: Sequence[float], *, resamples: int = 10_000, seed: int = 0
+) -> tuple[float, float]:
+    """95% percentile bootstrap interval of the mean of `values` (the units resampled with
+    replacement, `resamples` times, from a numpy Generator seeded with `seed`); with fewer than
+    two values, the mean itself (nan with none)."""
+    import numpy as np
+
+    v = np.asarray(values, dtype=np.float64)
+    if len(v) < 2:
+        m = float(v.mean()) if len(v) else math.nan
+        return (m, m)
+    rng = np.random.default_rng(seed)
+    means = v[rng.integers(0, len(v), size=(resamples, len(v)))].mean(axis=1)
+    low, high = np.percentile(means, [2.5, 97.5])
+    return (float(low), float(high))
+
+
+def units_for_power(
+    diffs: Sequence[float],
+    *,
+    alpha: float,
+    power: float = 0.8,
+    min_nonzero: int = 0,
+    most: int = 40,
+    resamples: int = 1000,
+    seed: int = 0,
+) -> int | None:
+    """The fewest units (at least len(diffs)) for which the exact one-sided signed-rank test
+    reaches p <= alpha, on at least `min_nonzero` non-zero differences, in at least `power` of
+    `resamples` samples drawn with replacement from the observed `diffs`; None if `most` units
+    do not. Resampling the observed units never
+    draws a unit unlike them, so this is a lower bound on what a real experiment needs."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    d = np.round(np.asarray(diffs, dtype=np.float64), 9)
+    if len(d) == 0 or not (d > 0).any():
+        return None
+    seen: dict[tuple[float, ...], bool] = {}
+    for n in range(len(d), most + 1):
+        passed = 0
+        for row in d[rng.integers(0, len(d), size=(resamples, n))]:
+            key = tuple(sorted(row.tolist()))
+            if key not in seen:
+                test = signed_rank_exact(key)
+                seen[key] = test.n >= min_nonzero and test.p <= alpha
+            passed += seen[key]
+        if passed >= power * resamples:
+            return n
+    return None

@@ -4,7 +4,8 @@
     <out>/runs.csv      one row per finished run (runner.COLUMNS), resumable (folder.py)
     <out>/timings.csv   per run: its key, wall time and the worker that ran it (not part of the
                         results: it differs between executions)
-    <out>/table.md      means and 95% confidence intervals beside the paper's numbers
+    <out>/table.md      means and 95% confidence intervals beside the paper's numbers, and CF H
+                        against Baseline H with one unit per seed (seed_test.py)
     <out>/plots/*.png, <out>/curves.rrd   (figures.py)
 
 An interrupted experiment resumes from the folder: runs whose key is in runs.csv are skipped.
@@ -18,6 +19,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from dfa_viz.experiment import seed_test
 from dfa_viz.experiment.conditions import CONDITION_NAMES, CONDITIONS, paper_value
 from dfa_viz.experiment.folder import ResultsFolder
 from dfa_viz.experiment.runner import COLUMNS, KEY, Settings
@@ -145,32 +147,6 @@ def beyond_paper(table, world: str, shift: str) -> str | None:
     return f"CF H at 5 trajectories {ours.mean:.2f} vs the paper's CF H at 10: {paper:g} ({met})"
 
 
-def cf_beats_baseline(rows: Sequence[dict[str, str]], world: str, shift: str) -> str | None:
-    """CF H against Baseline H paired over (budget, seed): the mean difference and a one-sided
-    Wilcoxon signed-rank test (None without both conditions)."""
-    from scipy.stats import wilcoxon
-
-    runs = {
-        (r["condition"], int(r["budget"]), int(r["seed"])): float(r["success"])
-        for r in rows
-        if (r["world"], r["shift"]) == (world, shift)
-    }
-    keys = sorted((b, s) for c, b, s in runs if c == "cf_h" and ("baseline_h", b, s) in runs)
-    if not keys:
-        return None
-    cf = [runs[("cf_h", b, s)] for b, s in keys]
-    base = [runs[("baseline_h", b, s)] for b, s in keys]
-    diff = sum(c - b for c, b in zip(cf, base, strict=True)) / len(keys)
-    if all(c == b for c, b in zip(cf, base, strict=True)):
-        return f"CF H - Baseline H over {len(keys)} paired runs: +0.00 (identical; not significant)"
-    p = float(wilcoxon(cf, base, alternative="greater").pvalue)
-    verdict = "significant" if p < 0.05 else "not significant"
-    return (
-        f"CF H - Baseline H over {len(keys)} runs paired by budget and seed: {diff:+.2f}, "
-        f"one-sided Wilcoxon signed-rank p = {p:.2g} ({verdict} at 0.05)"
-    )
-
-
 def _fmt(cell: Cell | None, paper: float | None) -> str:
     ours = "—" if cell is None else f"{cell.mean:.2f}"
     if cell is not None and cell.n > 1:
@@ -228,12 +204,13 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
             f"mean over budgets: {overall}). "
             f"Ordering: {ordering(table, world, shift, budgets)}.",
         ]
-        test = cf_beats_baseline(rows, world, shift)
+        test = seed_test.row_line(rows, world, shift)
         if test:
             lines += ["", f"{test}."]
         goal = beyond_paper(table, world, shift)
         if goal:
             lines += ["", f"Beyond the paper: {goal}."]
+    lines += seed_test.markdown(rows, panels(table))
     return "\n".join(lines) + "\n"
 
 

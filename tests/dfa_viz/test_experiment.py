@@ -7,13 +7,16 @@ import numpy as np
 import pytest
 import rerun as rr
 from PIL import Image
+from scipy.stats import wilcoxon
 
 from dfa_viz.cli import main
 from dfa_viz.configs import Finetuning
+from dfa_viz.experiment import seed_test
 from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
 from dfa_viz.experiment.experiment import Plan, run_experiment
-from dfa_viz.experiment.results import cf_beats_baseline, results_folder, summarise
+from dfa_viz.experiment.results import results_folder, summarise
 from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
+from search.stats import bootstrap_mean, holm, signed_rank_exact, units_for_power
 from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
@@ -192,8 +195,9 @@ def test_random_concepts_cover_the_visible_ones(nav, nav_policy):
     assert [t.scenes for t in many] != [t.scenes for t in other]
 
 
-def test_cf_h_against_baseline_h_is_paired_over_budget_and_seed():
-    rows = [
+def _runs(cf: dict[int, list[float]], base: dict[int, list[float]], budgets=(5, 10)):
+    """q2 rows for one world and shift: per seed, CF H's and Baseline H's success by budget."""
+    return [
         {
             "world": "nav2d",
             "shift": "object",
@@ -202,14 +206,95 @@ def test_cf_h_against_baseline_h_is_paired_over_budget_and_seed():
             "seed": str(s),
             "success": str(v),
         }
-        for c, v in (("cf_h", 0.9), ("baseline_h", 0.4))
-        for b in (5, 10)
-        for s in range(4)
+        for c, curves in (("cf_h", cf), ("baseline_h", base))
+        for s, curve in curves.items()
+        for b, v in zip(budgets, curve, strict=True)
     ]
-    text = cf_beats_baseline(rows, "nav2d", "object")
-    assert "over 8 runs paired by budget and seed: +0.50" in text and "(significant" in text
-    same = [dict(r, success="0.5") for r in rows]
-    assert "identical; not significant" in cf_beats_baseline(same, "nav2d", "object")
+
+
+def test_cf_h_against_baseline_h_has_one_unit_per_seed():
+    # 5 seeds x 2 budgets, CF H ahead in every run: 5 units, not 10, so p = 1/2^5
+    rows = _runs({s: [0.9, 1.0] for s in range(5)}, {s: [0.4, 0.5] for s in range(5)})
+    c = seed_test.compare(rows, "nav2d", "object")
+    assert c.seeds == (0, 1, 2, 3, 4) and c.test.n == 5
+    assert c.test.p == 1 / 32 and c.mean_diff == pytest.approx(0.5)
+    assert c.interval == pytest.approx((0.5, 0.5)), "equal differences: no spread to resample"
+    text = "\n".join(seed_test.markdown(rows, [("nav2d", "object")]))
+    assert "| nav2d, object | 5 | +0.50 [+0.50, +0.50] | 5 / 0 / 0 | 0.0312 (0.0312) |" in text
+    assert "too few seeds to test: 5 differ" in text and "significant" not in text
+    assert text.endswith("| 10 |"), "5 seeds would pass 0.05 (1/32), but 10 must differ"
+
+
+def test_enough_seeds_are_tested_and_ties_are_not_counted():
+    ahead = {s: [1.0, 1.0] for s in range(12)}
+    behind = {s: [0.0, 0.0] for s in range(12)}
+    behind[11] = [1.0, 1.0]  # a tie: dropped, 11 seeds differ
+    rows = _runs(ahead, behind)
+    c = seed_test.compare(rows, "nav2d", "object")
+    assert (c.test.n, c.test.positive, c.test.p) == (11, 11, 0.5**11)
+    text = "\n".join(seed_test.markdown(rows, [("nav2d", "object")]))
+    assert "11 / 0 / 1" in text and "CF H > Baseline H at 0.05 after Holm over 1 rows" in text
+
+
+def test_a_row_where_no_seed_differs_is_not_tested():
+    same = _runs({s: [0.5, 1.0] for s in range(5)}, {s: [0.5, 1.0] for s in range(5)})
+    c = seed_test.compare(same, "nav2d", "object")
+    assert c.test.n == 0 and c.test.p == 1.0 and not c.tested
+    text = "\n".join(seed_test.markdown(same, [("nav2d", "object")]))
+    assert "no seed differs: nothing to test" in text
+
+
+def test_area_under_the_curve_is_the_trapezoid_over_the_budget_range():
+    assert seed_test.area({5: 0.0, 10: 1.0, 100: 1.0}) == pytest.approx(92.5 / 95)
+    assert seed_test.area({25: 0.4}) == 0.4
+    assert seed_test.area({5: 0.2, 10: 0.2, 50: 0.2}) == pytest.approx(0.2)
+
+
+def test_exact_signed_rank_by_hand():
+    assert signed_rank_exact([0.1, 0.2, 0.3, 0.4, 0.5]).p == 1 / 32
+    assert signed_rank_exact([-0.1, -0.2, -0.3, -0.4, -0.5]).p == 1.0
+    # zeros dropped: 3 differences left, p = 1/8
+    zeros = signed_rank_exact([0.1, 0.0, 0.1, 0.0, 0.1])
+    assert (zeros.n, zeros.positive, zeros.p, zeros.p_min) == (3, 3, 1 / 8, 1 / 8)
+    # float noise is not a difference: 0.3 - 0.2 ties with 0.1, 0.7 - 0.6 - 0.1 is zero
+    assert signed_rank_exact([0.3 - 0.2, 0.1, 0.7 - 0.6 - 0.1]).n == 2
+    # ties: |d| = 1, 1, 2, 2, 3 -> mid-ranks 1.5, 1.5, 3.5, 3.5, 5; the -1 leaves T+ = 13.5 of
+    # 15, and of the 32 sign choices only those whose negative ranks sum to <= 1.5 reach it
+    # (none, or either 1.5): p = 3/32
+    tied = signed_rank_exact([1, -1, 2, 2, 3])
+    assert (tied.n, tied.positive, tied.statistic, tied.p) == (5, 4, 13.5, 3 / 32)
+    # without ties it is scipy's exact test
+    d = [3, -1, 2, 5, 4, -6, 7]
+    assert signed_rank_exact(d).p == pytest.approx(
+        wilcoxon(d, alternative="greater", method="exact").pvalue, abs=1e-12
+    )
+    assert signed_rank_exact(d).p == 19 / 128
+    assert signed_rank_exact([]).p == 1.0
+
+
+def test_holm_on_known_p_values():
+    assert holm([0.01, 0.04, 0.03, 0.2]) == pytest.approx([0.04, 0.09, 0.09, 0.2])
+    assert holm([1 / 32] * 6) == pytest.approx([6 / 32] * 6)
+    assert holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])
+    assert holm([]) == []
+
+
+def test_bootstrap_interval_is_seeded_and_brackets_the_mean():
+    v = [0.1, 0.4, 0.7, 0.2, 0.9]
+    low, high = bootstrap_mean(v, seed=3)
+    assert (low, high) == bootstrap_mean(v, seed=3)
+    assert 0.1 < low < np.mean(v) < high < 0.9
+    assert bootstrap_mean([0.3]) == (0.3, 0.3)
+
+
+def test_seeds_needed_for_power():
+    # every seed ahead: p = 1/2^n, and 1/2^7 is the first at or below 0.05/6
+    assert units_for_power([0.5, 0.6, 0.7, 0.6, 0.5], alpha=0.05 / 6) == 7
+    assert units_for_power([0.5] * 5, alpha=0.05) == 5
+    assert units_for_power([0.5] * 5, alpha=0.05, min_nonzero=10) == 10
+    # two of five seeds differ: more seeds are needed to draw 7 that differ 80% of the time
+    assert units_for_power([0.1, 0, 0.1, 0, 0], alpha=0.05 / 6) > 14
+    assert units_for_power([0.0, -0.1], alpha=0.05) is None
 
 
 def test_confidence_interval():
