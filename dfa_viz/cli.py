@@ -1,4 +1,5 @@
-"""The `dfa` command: one subcommand per config in dfa_viz.configs, parsed by tyro.
+"""The `dfa` command: one subcommand per frozen *Args config (the core's in dfa_viz.configs,
+each client's in its args.py), parsed by tyro.
 
     dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
     dfa export lerobot | view
@@ -24,24 +25,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import tyro
 
-from dfa_viz.configs import (
-    AnalyseStudyArgs,
-    BenchArgs,
-    CheckWorldArgs,
-    DemoArgs,
-    ExplainArgs,
-    ExportArgs,
-    NewStudyArgs,
-    PriorArgs,
-    Q2Args,
-    RunArgs,
-    ServeArgs,
-    ServeStudyArgs,
-    SweepArgs,
-    TrainArgs,
-    ViewArgs,
-    WorldsArgs,
-)
+from dfa_viz.app.args import DemoArgs, ServeArgs
+from dfa_viz.bench.args import BenchArgs
+from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, WorldsArgs
+from dfa_viz.experiment.args import ExplainArgs, Q2Args
+from dfa_viz.lerobot.args import ExportArgs, ViewArgs
+from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
+from dfa_viz.sweep.args import SweepArgs
 from sim.core import UserError, files
 
 Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experiment`)

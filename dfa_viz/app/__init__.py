@@ -4,10 +4,11 @@
     demo(world=, shift=, seed=)             the page on a default scenario, diagnosis computed
     start(...) -> App                       non-blocking (tests, benchmarks); App.stop()
 
-Modules: sessions (the JSON-lines session folder), state (the shared loop state machine), work
-(the jobs, composed from policy/search/recording), demonstrate (per-world input), episodes (a
-LeRobotDataset's episodes offered as demonstrations, `dfa serve --demos`), frames and plots
-(what is drawn), page/compare/feedback/canvas/tables/picker (one tab's GUI), server.
+Modules: args (ServeArgs, DemoArgs: the options of `dfa serve` and `dfa demo`), sessions (the
+JSON-lines session folder), state (the shared loop state machine), jobs (the jobs, composed
+from policy/search/recording), demonstrate (per-world input), episodes (a LeRobotDataset's
+episodes offered as demonstrations, `dfa serve --demos`), frames and plots (what is drawn),
+page/compare/feedback/canvas/tables/picker (one tab's GUI), server.
 """
 
 from __future__ import annotations

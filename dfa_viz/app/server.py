@@ -24,11 +24,12 @@ import viser
 import websockets.asyncio.server
 
 from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_port, url
+from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.app.episodes import DemoEpisodes, open_demos
 from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState, Policies
-from dfa_viz.configs import AdaptConfig, DemoArgs, ServeArgs
+from dfa_viz.configs import AdaptConfig
 from sim import check_world_name
 from sim.core import UserError, check_shift
 

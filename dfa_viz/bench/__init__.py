@@ -8,6 +8,5 @@ prior.py     the learned search prior against enumeration and the first-step pri
 costs.py     per world: render throughput, finetuning, recording size, one experiment run
 page.py      the web page in Chromium: load, slider latency, finetune round trip
 timing.py    best_of and the machine's name
-
-Its options are dfa_viz.configs.BenchArgs.
+args.py      BenchArgs, its options
 """

@@ -12,11 +12,11 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from dfa_viz.bench.args import BenchArgs
 from dfa_viz.bench.prior import bench_prior, prior_rows
 from dfa_viz.bench.search import bench_world
 from dfa_viz.bench.sweep import SWEPT, sweep_rows
 from dfa_viz.bench.timing import machine
-from dfa_viz.configs import BenchArgs
 from policy import base_policy
 from sim import PAPER_WORLDS, get_world
 from sim.core import files

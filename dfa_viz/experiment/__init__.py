@@ -4,12 +4,13 @@ backend) and the explanation benchmark.
 conditions.py  the four conditions, who picks which concept, the paper's accuracies and numbers
 runner.py      one run: (world, shift, condition, budget, seed) -> one row, from the loop's
                own steps (dfa_viz.loop)
-backends.py    a local process pool or a Ray cluster
 results.py     the resumable results folder, statistics, the Markdown table
 figures.py     PNG plots and the .rrd of the curves
-experiment.py  planning, resuming, running, reporting
-cli.py         Q2Args and `experiment_q2`, the `dfa experiment q2` subcommand; ExplainArgs and
-               `experiment_explain`, `dfa experiment explain`
+experiment.py  planning, resuming, running, reporting (on dfa_viz.backends: a local process
+               pool or a Ray cluster)
+args.py        Q2Args and ExplainArgs (their options), the explanation benchmark's name tables
+cli.py         `experiment_q2`, the `dfa experiment q2` subcommand; `experiment_explain`,
+               `dfa experiment explain`
 
 The explanation benchmark (`dfa experiment explain`): explain.py (one task: every explainer's
 ranking of the concepts against the planted cause; the plan and the run), explain_results.py

@@ -4,7 +4,7 @@ it runs."""
 
 from __future__ import annotations
 
-from dfa_viz.configs import ExplainArgs, Q2Args
+from dfa_viz.experiment.args import ExplainArgs, Q2Args
 
 
 def experiment_q2(args: Q2Args) -> None:

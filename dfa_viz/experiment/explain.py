@@ -25,9 +25,9 @@ import time
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
-from dfa_viz.configs import EXPLAIN_SHIFTS as SHIFTS
-from dfa_viz.configs import EXPLAIN_WORLDS as WORLDS
-from dfa_viz.configs import EXPLAINERS
+from dfa_viz.experiment.args import EXPLAIN_SHIFTS as SHIFTS
+from dfa_viz.experiment.args import EXPLAIN_WORLDS as WORLDS
+from dfa_viz.experiment.args import EXPLAINERS
 
 if TYPE_CHECKING:
     from dfa_viz.experiment.experiment import Summary

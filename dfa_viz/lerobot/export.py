@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
 
-from dfa_viz.configs import ExportArgs
 from dfa_viz.lerobot import sources as S
+from dfa_viz.lerobot.args import ExportArgs
 from dfa_viz.lerobot.episodes import run_episodes
 from dfa_viz.loop import RunRecord
 from sim import get_world

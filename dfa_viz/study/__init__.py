@@ -1,5 +1,6 @@
 """`dfa study`: the paper's user study run on the page, with and without explanations.
 
+args       the options of `dfa study new|serve|analyse`
 protocol   study.toml read and checked; each participant's balanced plan of questions
 freeze     `dfa study new`: every task made once and frozen in the study folder
 intro      the familiarisation's pictures (the concept space, the shift kinds, a counterfactual)

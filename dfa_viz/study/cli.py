@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from dfa_viz.configs import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
+from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
 from sim.core import UserError
 
 

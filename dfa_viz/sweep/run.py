@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dfa_viz.checked_policy import checked_policy
-from dfa_viz.configs import SweepArgs
+from dfa_viz.sweep.args import SweepArgs
 from dfa_viz.sweep.figures import Heatmap
 from search.sweep import (
     SweepProgress,

@@ -113,7 +113,7 @@ def test_bad_flags_are_one_line_and_exit_2(tmp_path, capsys, args, message):
 
 
 def test_every_explainer_has_a_name_in_the_cli_defaults():
-    from dfa_viz.configs import ExplainArgs
+    from dfa_viz.experiment.args import ExplainArgs
 
     assert ExplainArgs().methods == EXPLAINERS
 

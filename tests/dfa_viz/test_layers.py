@@ -12,6 +12,7 @@ from pathlib import Path
 import dfa_viz
 
 CLIENTS = ("app", "sweep", "experiment", "study", "bench", "lerobot", "cli", "assemble")
+CLIENT_PARTS = [[c] for c in CLIENTS]
 ROOT = Path(dfa_viz.__file__).parent
 
 
@@ -75,9 +76,42 @@ def test_no_import_circle_at_module_level():
     assert real == [], real
 
 
-def test_importing_the_loop_loads_no_client():
+def _core() -> dict[str, Path]:
+    """The core's modules: every dfa_viz module outside the clients."""
+    paths = {_module(p): p for p in ROOT.rglob("*.py")}
+    return {n: p for n, p in paths.items() if n != "dfa_viz" and n.split(".")[1] not in CLIENTS}
+
+
+def _every_import(path: Path, name: str) -> set[str]:
+    """The dfa_viz modules `path` names in any import: at module level, inside functions and
+    under `if TYPE_CHECKING:`."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join([*up, *([base] if base else [])])
+            out |= {base, *(f"{base}.{a.name}" for a in node.names)}
+    return {m for m in out if m.split(".")[0] == "dfa_viz"}
+
+
+def test_the_core_names_no_client_in_any_import():
+    core = _core()
+    assert {"dfa_viz.loop", "dfa_viz.configs", "dfa_viz.recording", "dfa_viz.users"} <= set(core)
+    reached = {
+        name: sorted(m for m in _every_import(path, name) if m.split(".")[1:2] in CLIENT_PARTS)
+        for name, path in core.items()
+    }
+    assert {n: m for n, m in reached.items() if m} == {}
+
+
+def test_importing_the_core_loads_no_client():
     code = (
-        "import sys, dfa_viz.loop, dfa_viz.recording, dfa_viz.users, dfa_viz.configs; "
+        f"import sys; [__import__(m) for m in {sorted(_core())!r}]; "
         f"print(sorted(m for m in sys.modules if m.split('.')[1:2] and "
         f"m.split('.')[0] == 'dfa_viz' and m.split('.')[1] in {CLIENTS!r}))"
     )

@@ -1,0 +1,121 @@
+"""The options of the experiments, `dfa experiment q2` (Q2Args) and `dfa experiment explain`
+(ExplainArgs), and the explanation benchmark's name tables. Light to import: nothing here
+loads torch, MuJoCo, rerun or viser.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Literal
+
+import tyro
+
+from dfa_viz.configs import Finetuning
+from sim import PAPER_WORLDS
+
+EXPLAINERS = (
+    "counterfactual",
+    "integrated_gradients",
+    "occlusion",
+    "grad_cam",
+    "kernel_shap",
+    "random",
+)
+"""The explanation benchmark's explainers: the search, policy.saliency.METHODS in their order,
+and the floor; spelled out so that the command line's defaults load no PyTorch (test_explain
+holds the middle to METHODS)."""
+EXPLAIN_SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
+EXPLAIN_WORLDS = PAPER_WORLDS
+
+Condition = Literal["nh_random", "baseline_h", "cf_h", "oracle"]
+
+
+@dataclass(frozen=True)
+class Q2Args:
+    """Reproduce the paper's finetuning comparison: success against finetuning trajectories.
+
+    For every world, shift, condition, budget and seed, one run takes the first task-irrelevant
+    test task of that seed the base policy fails, the expert's demonstration of it, and a
+    concept to mark task-irrelevant: NH-random a random concept for each variant; Baseline H a
+    simulated user who names the right concept at the paper's rate without counterfactuals;
+    CF H one who sees the loop's real diagnosis and names the right concept at the paper's
+    rate with counterfactuals (never when the search found nothing or the wrong thing); Oracle
+    always the right one. The budget is the number of finetuning trajectories: the
+    demonstration plus budget - 1 distinct variants over the concept (same actions, edited
+    states), repeated from the demonstration on when the concept has fewer variants. The
+    adaptation is `dfa run`'s own (loop.adapt); both policies are scored on fresh tasks that
+    carry the test task's shift, and on fresh tasks from all of what the user wants.
+
+    Writes OUT/runs.csv (every run), OUT/table.md (means with 95% confidence intervals beside
+    the paper's numbers, and whether CF H beats Baseline H), OUT/plots/<world>-<shift>.png and
+    OUT/curves.rrd. Runs already in OUT/runs.csv are skipped, so an interrupted experiment
+    resumes where it stopped. The same seeds give the same runs.csv whichever backend ran them.
+    """
+
+    worlds: Annotated[tuple[Literal[PAPER_WORLDS], ...], tyro.conf.arg(aliases=("--world",))] = (
+        PAPER_WORLDS
+    )
+    """Which of the paper's worlds."""
+    shift: Literal["object", "distractor", "both"] = "both"
+    """object, distractor, or both."""
+    budgets: tuple[int, ...] = (5, 10, 25, 50, 75, 100)
+    """Finetuning trajectories per run (the demonstration counts as one)."""
+    seeds: int = 5
+    """Seeds 0 .. SEEDS-1 (each picks a test task and every random choice of its runs)."""
+    workers: int = 2
+    """Runs executed side by side (processes locally, CPUs of a local Ray instance)."""
+    backend: Literal["local", "ray"] = "local"
+    """local (a process pool on this machine) or ray (pip install 'dfa[ray]')."""
+    out: Path = Path("recordings/experiments/q2")
+    """The results folder."""
+    conditions: tuple[Condition, ...] = ("nh_random", "baseline_h", "cf_h", "oracle")
+    """Which conditions."""
+    max_size: int = 2
+    """Largest edit the counterfactual search tries (CF H)."""
+    ray_address: str | None = None
+    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
+    progress: bool = True
+    """Show a progress bar."""
+    finetuning: Annotated[Finetuning, tyro.conf.OmitArgPrefixes] = field(default_factory=Finetuning)
+    """How every run finetunes and scores (its budget is one of --budgets)."""
+
+
+@dataclass(frozen=True)
+class ExplainArgs:
+    """Measure how well each explanation names the planted cause of a failure.
+
+    For every world, shift and seed, the first test task of that seed the base policy fails,
+    its failed rollout and the expert's demonstration. Each explainer ranks the concepts the
+    test scene shows: the counterfactual search (the concepts its best edit changes first);
+    captum's Integrated Gradients, Occlusion, Grad-CAM and KernelSHAP over the failed
+    rollout's frames against the demonstrated actions, reduced to the attribution inside each
+    object's pixels; a random order as the floor. A hit is the planted cause ranked first
+    (top-1) or among the first three (top-3).
+
+    Writes OUT/tasks.csv (every task and explainer), OUT/timings.csv, OUT/table.md (hit rates
+    with 95% Wilson intervals beside the paper's user accuracies, and time per task) and
+    OUT/hits.png. Tasks already in OUT/tasks.csv are skipped, so an interrupted benchmark
+    resumes where it stopped; the same seeds give the same tasks.csv on either backend.
+    """
+
+    worlds: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--world",))] = EXPLAIN_WORLDS
+    """Which worlds (any that makes test tasks: `dfa worlds` says which)."""
+    shifts: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--shift",))] = EXPLAIN_SHIFTS
+    """Which shifts (those with a planted cause: object_ti, object_tr, distractor_ti, ...)."""
+    tasks: int = 50
+    """Tasks per world and shift: seeds 0 .. TASKS-1."""
+    methods: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--method",))] = EXPLAINERS
+    """Which explainers (counterfactual, integrated_gradients, occlusion, grad_cam, ...)."""
+    workers: int = 2
+    """Tasks explained side by side (processes locally, CPUs of a local Ray instance)."""
+    backend: Literal["local", "ray"] = "local"
+    """local (a process pool on this machine) or ray (pip install 'dfa[ray]')."""
+    out: Path = Path("recordings/experiments/explain")
+    """The results folder."""
+    max_size: int = 2
+    """Largest edit the counterfactual search tries."""
+    ray_address: str | None = None
+    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
+    progress: bool = True
+    """Show a progress bar."""
