@@ -23,6 +23,16 @@ CONDITION_NAMES = {
     "cf_h": "CF H",
     "oracle": "Oracle",
 }
+SIMULATED = ("baseline_h", "cf_h")
+"""The conditions whose human is a simulated user (conditions.choose), never a person."""
+
+
+def condition_label(condition: str) -> str:
+    """A condition's name as tables and plots print it: the simulated users say so."""
+    name = CONDITION_NAMES[condition]
+    return f"{name} (simulated user)" if condition in SIMULATED else name
+
+
 SHIFT_KINDS = ("object", "distractor")
 PAPER_BUDGETS = (5, 10, 25, 50, 75, 100)
 

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from dfa_viz.experiment.conditions import (
-    CONDITION_NAMES,
     CONDITIONS,
     PAPER_BUDGETS,
+    condition_label,
     paper_value,
 )
 from dfa_viz.experiment.results import Cell, cells, panels
@@ -48,7 +48,7 @@ def _draw_panel(ax, table, world: str, shift: str, *, legend: bool) -> None:
         colour = _rgb01(c)
         if budgets:
             mean = [x.mean for x in cs]
-            ax.plot(budgets, mean, "o-", color=colour, lw=2, ms=4, label=CONDITION_NAMES[c])
+            ax.plot(budgets, mean, "o-", color=colour, lw=2, ms=4, label=condition_label(c))
             if any(x.n > 1 for x in cs):
                 ax.fill_between(
                     budgets, [x.low for x in cs], [x.high for x in cs], color=colour, alpha=0.18
@@ -86,6 +86,10 @@ def write_plots(out: Path, rows: Sequence[dict[str, str]]) -> list[Path]:
         fig = Figure(figsize=(4.2 * cols, 3.4 * rows_n))
         for i, (world, shift) in enumerate(pairs):
             _draw_panel(fig.add_subplot(rows_n, cols, i + 1), table, world, shift, legend=i == 0)
+        fig.suptitle(
+            "Success against finetuning trajectories (Baseline H and CF H: simulated users)",
+            fontsize=11,
+        )
         fig.tight_layout()
         paths.append(folder / "overview.png")
         save_figure(fig, paths[-1])
@@ -137,7 +141,7 @@ def _log_curves(rec, table) -> None:
 
     for world, shift in pairs:
         for c in CONDITIONS:
-            base, name, colour = f"{world}/{shift}/{c}", CONDITION_NAMES[c], COLOURS[c]
+            base, name, colour = f"{world}/{shift}/{c}", condition_label(c), COLOURS[c]
             budgets, cs = _series(table, world, shift, c)
             if budgets:
                 send(f"{base}/mean", budgets, [x.mean for x in cs], name, colour, 2.5)

@@ -12,9 +12,9 @@ from scipy.stats import wilcoxon
 from dfa_viz.cli import main
 from dfa_viz.configs import Finetuning
 from dfa_viz.experiment import seed_test
-from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
+from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose, condition_label
 from dfa_viz.experiment.experiment import Plan, run_experiment
-from dfa_viz.experiment.results import results_folder, summarise
+from dfa_viz.experiment.results import results_folder, same_as_oracle, summarise
 from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
 from search.stats import bootstrap_mean, holm, signed_rank_exact, units_for_power
 from sim import PAPER_WORLDS, get_world
@@ -83,6 +83,8 @@ def test_table_plot_and_recording(local_run):
     table = (local_run.out / "table.md").read_text()
     assert "## nav2d, object shift" in table
     assert "| Oracle | " in table and "(0.8)" in table, "the paper's number sits beside ours"
+    assert "| CF H (simulated user) | " in table and "| Baseline H (simulated user) | " in table
+    assert "CF H's success columns equal Oracle's in " in table
     png = local_run.out / "plots" / "nav2d-object.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with Image.open(png) as im:
@@ -248,6 +250,34 @@ def test_area_under_the_curve_is_the_trapezoid_over_the_budget_range():
     assert seed_test.area({5: 0.0, 10: 1.0, 100: 1.0}) == pytest.approx(92.5 / 95)
     assert seed_test.area({25: 0.4}) == 0.4
     assert seed_test.area({5: 0.2, 10: 0.2, 50: 0.2}) == pytest.approx(0.2)
+
+
+def test_cf_h_runs_that_are_oracle_runs_are_counted():
+    def run(condition, seed, success, loss):
+        return {
+            "world": "nav2d",
+            "shift": "object",
+            "condition": condition,
+            "budget": "5",
+            "seed": str(seed),
+            "success": success,
+            "success_before": "0.2",
+            "success_all": success,
+            "success_all_before": "0.5",
+            "final_loss": loss,
+        }
+
+    rows = [
+        *(run("oracle", s, "0.9", "0.01") for s in range(4)),
+        run("cf_h", 0, "0.9", "0.01"),  # Oracle's run
+        run("cf_h", 1, "0.9", "0.02"),  # another concept, the same success
+        run("cf_h", 2, "0.4", "0.03"),
+        run("cf_h", 7, "0.9", "0.01"),  # no Oracle run to compare with
+    ]
+    assert same_as_oracle(rows) == (2, 1, 3)
+    assert same_as_oracle(rows[:4]) is None
+    assert condition_label("cf_h") == "CF H (simulated user)"
+    assert condition_label("oracle") == "Oracle" and condition_label("nh_random") == "NH-random"
 
 
 def test_exact_signed_rank_by_hand():
