@@ -17,8 +17,9 @@ from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from policy.base import base_folder
 from policy.evaluate import DRAWN
+from policy.methods import check_method
 from policy.outside import chosen_policy
-from policy.saliency import check_explainable, check_method
+from policy.saliency import check_explainable
 from policy.train import base_config, training_tasks
 from search import SearchConfig
 from search.prior import LearnedPrior

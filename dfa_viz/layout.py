@@ -8,6 +8,7 @@ import numpy as np
 import rerun.blueprint as rrb
 
 from dfa_viz.loop import RunRecord
+from policy.methods import METHOD_NAMES
 from search import distance_to_demo
 from sim.core import Trajectory, World
 
@@ -38,8 +39,6 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
     method whose layer lies over the failed rollout's frames (named in its title)."""
     titles = rollout_titles(record)
     if saliency is not None:
-        from policy.saliency import METHOD_NAMES
-
         titles["failed"] += f" · {METHOD_NAMES.get(saliency, saliency)}"
     views: list = [
         rrb.Spatial2DView(origin=f"rollouts/{name}", name=titles[name]) for name in ROLLOUTS

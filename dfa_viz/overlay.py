@@ -20,7 +20,7 @@ ALPHA_MAX = 0.85
 
 @dataclass(frozen=True, eq=False)
 class SaliencyLayer:
-    """The saliency of a failed rollout by one method (policy.saliency.METHODS)."""
+    """The saliency of a failed rollout by one method (policy.methods.METHODS)."""
 
     method: str
     maps: np.ndarray  # (T, H, W) float32 in [0, 1]: one per explained step, frames 0 .. T-1

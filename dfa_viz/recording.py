@@ -15,6 +15,7 @@ from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
 from dfa_viz.report import evaluation_sentence
 from dfa_viz.rrd import RrdFile, recording_id, send_blueprint
+from policy.methods import METHOD_NAMES
 from search import Candidate, SearchResult, distance_to_demo
 from sim.core import Edit, Feedback, Trajectory, World
 
@@ -184,8 +185,6 @@ class Recorder:
         """The failed rollout's saliency maps as a heat-coloured RGBA image over its frames
         (`rollouts/failed/saliency`, on `step`, drawn above the frame), cleared at the first
         step without a map; the method in the recording's properties."""
-        from policy.saliency import METHOD_NAMES
-
         self.rec.send_property(
             "saliency",
             rr.AnyValues(

@@ -19,14 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from policy.methods import check_method
 from policy.model import Policy
-from policy.saliency import (
-    SaliencyConfig,
-    attribute,
-    check_method,
-    explained_steps,
-    feature_labels,
-)
+from policy.saliency import SaliencyConfig, attribute, explained_steps, feature_labels
 from sim.core import Task, Trajectory, UserConcept, World
 from sim.core.visible import shown_slots, slot_masks, visible_concepts
 

@@ -32,16 +32,9 @@ import numpy as np
 import torch
 from torch import nn
 
+from policy.methods import METHODS, check_method  # noqa: F401 (study.protocol reads METHODS here)
 from policy.model import ImagePolicy, Policy
 from sim.core import Trajectory, UserError, World
-
-METHODS = ("integrated_gradients", "occlusion", "grad_cam", "kernel_shap")
-METHOD_NAMES = {
-    "integrated_gradients": "Integrated Gradients",
-    "occlusion": "Occlusion",
-    "grad_cam": "Grad-CAM",
-    "kernel_shap": "KernelSHAP (objects)",
-}
 
 
 @dataclass(frozen=True)
@@ -56,12 +49,6 @@ class SaliencyConfig:
     """KernelSHAP: coalitions sampled per frame (the empty and the full one always)."""
     batch: int = 512
     """Frames per forward pass inside the methods."""
-
-
-def check_method(method: str) -> str:
-    if method not in METHODS:
-        raise UserError(f"unknown saliency method {method!r}; accepted: {', '.join(METHODS)}")
-    return method
 
 
 def explained_steps(rollout: Trajectory, demo: Trajectory) -> int:

@@ -19,7 +19,7 @@ from dfa_viz.app.controls import Checked, one_of, refusal, refuse, whole
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.view import View
 from dfa_viz.overlay import SaliencyLayer, blend, failed_saliency
-from policy.saliency import METHOD_NAMES
+from policy.methods import METHOD_NAMES
 from search import distance_to_demo
 from sim.core import UserError
 

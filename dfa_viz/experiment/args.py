@@ -12,23 +12,19 @@ from typing import Annotated, Literal
 import tyro
 
 from dfa_viz.configs import Finetuning
+from dfa_viz.experiment.conditions import CONDITIONS, PAPER_BUDGETS, SHIFT_KINDS
+from policy.methods import METHODS
 from sim import PAPER_WORLDS
+from sim.core import SHIFTS
 
-EXPLAINERS = (
-    "counterfactual",
-    "integrated_gradients",
-    "occlusion",
-    "grad_cam",
-    "kernel_shap",
-    "random",
-)
-"""The explanation benchmark's explainers: the search, policy.saliency.METHODS in their order,
-and the floor; spelled out so that the command line's defaults load no PyTorch (test_explain
-holds the middle to METHODS)."""
-EXPLAIN_SHIFTS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr")
+EXPLAINERS = ("counterfactual", *METHODS, "random")
+"""The explanation benchmark's explainers: the search, the saliency methods (policy.methods)
+in their order, and the floor."""
+EXPLAIN_SHIFTS = tuple(s for s in SHIFTS if s != "other")
+"""The shifts that plant a cause to name: every shift but "other"."""
 EXPLAIN_WORLDS = PAPER_WORLDS
 
-Condition = Literal["nh_random", "baseline_h", "cf_h", "oracle"]
+Condition = Literal[CONDITIONS]  # type: ignore[valid-type]
 
 
 @dataclass(frozen=True)
@@ -57,9 +53,9 @@ class Q2Args:
         PAPER_WORLDS
     )
     """Which of the paper's worlds."""
-    shift: Literal["object", "distractor", "both"] = "both"
+    shift: Literal[(*SHIFT_KINDS, "both")] = "both"  # type: ignore[valid-type]
     """object, distractor, or both."""
-    budgets: tuple[int, ...] = (5, 10, 25, 50, 75, 100)
+    budgets: tuple[int, ...] = PAPER_BUDGETS
     """Finetuning trajectories per run (the demonstration counts as one)."""
     seeds: int = 5
     """Seeds 0 .. SEEDS-1 (each picks a test task and every random choice of its runs)."""
@@ -69,7 +65,7 @@ class Q2Args:
     """local (a process pool on this machine) or ray (pip install 'dfa[ray]')."""
     out: Path = Path("recordings/experiments/q2")
     """The results folder."""
-    conditions: tuple[Condition, ...] = ("nh_random", "baseline_h", "cf_h", "oracle")
+    conditions: tuple[Condition, ...] = CONDITIONS
     """Which conditions."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""

@@ -9,6 +9,7 @@ from dfa_viz.experiment.args import ExplainArgs, Q2Args
 
 def experiment_q2(args: Q2Args) -> None:
     """Plan, run (skipping finished runs) and report the comparison."""
+    from dfa_viz.experiment.conditions import SHIFT_KINDS
     from dfa_viz.experiment.experiment import Plan, run_experiment
     from dfa_viz.experiment.runner import Settings
     from sim.core import UserError
@@ -20,7 +21,7 @@ def experiment_q2(args: Q2Args) -> None:
     args.finetuning.check()
     plan = Plan(
         worlds=tuple(dict.fromkeys(args.worlds)),
-        shifts=("object", "distractor") if args.shift == "both" else (args.shift,),
+        shifts=SHIFT_KINDS if args.shift == "both" else (args.shift,),
         conditions=tuple(dict.fromkeys(args.conditions)),
         budgets=tuple(sorted(set(args.budgets))),
         seeds=tuple(range(args.seeds)),

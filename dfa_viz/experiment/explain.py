@@ -28,15 +28,14 @@ from typing import TYPE_CHECKING
 from dfa_viz.experiment.args import EXPLAIN_SHIFTS as SHIFTS
 from dfa_viz.experiment.args import EXPLAIN_WORLDS as WORLDS
 from dfa_viz.experiment.args import EXPLAINERS
+from policy.methods import METHOD_NAMES
 
 if TYPE_CHECKING:
     from dfa_viz.experiment.experiment import Summary
 
 
 def explainer_names() -> dict[str, str]:
-    """Each explainer's name in tables and plots (the saliency methods' are policy.saliency's)."""
-    from policy.saliency import METHOD_NAMES
-
+    """Each explainer's name in tables and plots (the saliency methods' are policy.methods')."""
     return {"counterfactual": "Counterfactual search", **METHOD_NAMES, "random": "Random"}
 
 

@@ -118,8 +118,8 @@ def test_every_explainer_has_a_name_in_the_cli_defaults():
     assert ExplainArgs().methods == EXPLAINERS
 
 
-def test_the_saliency_explainers_are_policy_saliencys_methods_with_its_names():
-    from policy.saliency import METHOD_NAMES, METHODS
+def test_the_saliency_explainers_are_policy_methods_with_their_names():
+    from policy.methods import METHOD_NAMES, METHODS
 
     assert ("counterfactual", *METHODS, "random") == EXPLAINERS
     names = explainer_names()

@@ -9,7 +9,8 @@ from torch import nn
 
 from policy import ImagePolicy, Policy, PolicyConfig, base_policy, failing_test_task
 from policy.concept_saliency import concept_scores, prepare, saliency_ranking
-from policy.saliency import METHODS, SaliencyConfig, attribute, grad_cam_layer, saliency_maps
+from policy.methods import METHODS
+from policy.saliency import SaliencyConfig, attribute, grad_cam_layer, saliency_maps
 from sim import get_world
 from sim.core import Trajectory, UserError
 from sim.core.visible import slot_masks
