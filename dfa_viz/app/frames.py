@@ -7,10 +7,11 @@ with nearest-neighbour repetition and sent as PNG.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
+from PIL import Image, ImageDraw
+
+from dfa_viz.fonts import font
 
 FRAME_PX = 216  # target width of one upscaled frame in the compare strip
 CANVAS_PX = 432  # target width of the clickable demonstration canvas
@@ -21,16 +22,8 @@ INK = (33, 37, 41)
 MUTED = (120, 124, 130)
 
 
-def _font(size: int):
-    """DejaVu Sans (matplotlib ships it: it has ✓ and ✗), else Pillow's own font."""
-    import matplotlib
-
-    path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"
-    return ImageFont.truetype(str(path), size) if path.exists() else ImageFont.load_default(size)
-
-
-_FONT = _font(14)
-_SMALL = _font(12)
+_FONT = font(14)
+_SMALL = font(12)
 
 
 def scale_for(frame_shape: Sequence[int], target_px: int = FRAME_PX) -> int:

@@ -12,9 +12,7 @@ from __future__ import annotations
 import contextlib
 import http
 import math
-import signal
 import threading
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +28,7 @@ from dfa_viz.app.page import Page
 from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState, Policies
 from dfa_viz.configs import AdaptConfig
+from dfa_viz.foreground import wait_then_stop
 from sim import check_world_name
 from sim.core import UserError, check_shift
 
@@ -339,32 +338,8 @@ def demo(args: DemoArgs, *, block: bool = True) -> App:
     return app
 
 
-class _Terminated(Exception):
-    """SIGTERM arrived (a service manager, `kill`): stop as for Ctrl-C."""
-
-
-def _terminate(_signum, _frame) -> None:
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
-    raise _Terminated()
-
-
-def _block(app: App, *, stopped: str | None = None) -> None:
+def _block(app: App) -> None:
     """Serve until Ctrl-C or SIGTERM, then stop (a running job is cancelled: its step is
-    offered again on resume) and print `stopped` (default: where the session is)."""
-    main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _terminate) if main else None
-    try:
-        while True:
-            time.sleep(3600)
-    except (KeyboardInterrupt, _Terminated):
-        pass
-    finally:
-        try:
-            app.stop()
-        finally:
-            if main and previous is not None:
-                signal.signal(signal.SIGTERM, previous)
-        print(
-            stopped or f"dfa serve: stopped; the session is saved in {app.state.session.folder}",
-            flush=True,
-        )
+    offered again on resume) and say where the session is."""
+    folder = app.state.session.folder
+    wait_then_stop(app.stop, stopped=f"dfa serve: stopped; the session is saved in {folder}")

@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image, ImageDraw
 
-from dfa_viz.app.frames import BACKGROUND, INK, _font, strip
+from dfa_viz.app.frames import BACKGROUND, INK, strip
+from dfa_viz.fonts import font
 from dfa_viz.study.protocol import Protocol
 from sim.core import Change, Edit, World
 from sim.core.concepts import ABSENT, PRESENCE, PRESENT
@@ -27,7 +28,7 @@ from sim.core.concepts import ABSENT, PRESENCE, PRESENT
 VALUES_SHOWN = 8
 EXAMPLE_SEED = 10_000
 COLOURS = ((120, 124, 130), (28, 126, 214), (230, 119, 0), (47, 158, 68))
-_TITLE = _font(16)
+_TITLE = font(16)
 
 
 def titled(title: str, image: np.ndarray) -> np.ndarray:

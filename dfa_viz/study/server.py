@@ -11,7 +11,8 @@ import threading
 from pathlib import Path
 
 from dfa_viz.app.address import serving_port, url
-from dfa_viz.app.server import App, _block, open_server, track_pages
+from dfa_viz.app.server import App, open_server, track_pages
+from dfa_viz.foreground import wait_then_stop
 from dfa_viz.study.answers import Store, check_id
 from dfa_viz.study.freeze import FrozenTask, load_intro, load_study, load_task
 from dfa_viz.study.page import StudyPage
@@ -79,4 +80,5 @@ def start_study(folder: Path, *, port: int | None = None, host: str = "127.0.0.1
 def serve_study(folder: Path, *, port: int | None = None, host: str = "127.0.0.1") -> None:
     """Serve until Ctrl-C; every answer is already on disk."""
     app = start_study(folder, port=port, host=host)
-    _block(app, stopped=f"dfa study: stopped; the answers are in {Path(folder) / 'answers'}")
+    answers = Path(folder) / "answers"
+    wait_then_stop(app.stop, stopped=f"dfa study: stopped; the answers are in {answers}")

@@ -1,6 +1,6 @@
 """The shape of dfa_viz: a core (the loop, users, configs, the recording) that loads no client
-(the page, the sweep, the experiments, the study, the bench, the LeRobot commands), and no
-import circle at module level."""
+(the page, the sweep, the experiments, the study, the bench, the LeRobot commands), no import
+circle at module level, and no private name borrowed across a client's border."""
 
 from __future__ import annotations
 
@@ -21,23 +21,33 @@ def _module(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _top_level_imports(path: Path, name: str) -> set[str]:
-    """The dfa_viz modules `path` imports when it is imported (not inside functions, not
-    under `if TYPE_CHECKING:`)."""
-    tree = ast.parse(path.read_text())
+def _imports(path: Path, name: str, nodes) -> list[tuple[str, list[str]]]:
+    """(module, names) of each import among `nodes` of `path` (module `name`), relative
+    imports resolved; `import a.b` is ("a.b", [])."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    out: set[str] = set()
-    for node in tree.body:
+    out: list[tuple[str, list[str]]] = []
+    for node in nodes:
         if isinstance(node, ast.Import):
-            out |= {a.name for a in node.names}
+            out += [(a.name, []) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
                 up = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join([*up, *([base] if base else [])])
-            out.add(base)
-            out |= {f"{base}.{a.name}" for a in node.names}
+            out.append((base, [a.name for a in node.names]))
+    return out
+
+
+def _dfa_viz_modules(imports: list[tuple[str, list[str]]]) -> set[str]:
+    """The dfa_viz modules (or names in them) the imports name."""
+    out = {m for m, _ in imports} | {f"{m}.{n}" for m, names in imports for n in names}
     return {m for m in out if m.split(".")[0] == "dfa_viz"}
+
+
+def _top_level_imports(path: Path, name: str) -> set[str]:
+    """The dfa_viz modules `path` imports when it is imported (not inside functions, not
+    under `if TYPE_CHECKING:`)."""
+    return _dfa_viz_modules(_imports(path, name, ast.parse(path.read_text()).body))
 
 
 def _graph() -> dict[str, set[str]]:
@@ -85,18 +95,7 @@ def _core() -> dict[str, Path]:
 def _every_import(path: Path, name: str) -> set[str]:
     """The dfa_viz modules `path` names in any import: at module level, inside functions and
     under `if TYPE_CHECKING:`."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            out |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                up = package.split(".")[: len(package.split(".")) - node.level + 1]
-                base = ".".join([*up, *([base] if base else [])])
-            out |= {base, *(f"{base}.{a.name}" for a in node.names)}
-    return {m for m in out if m.split(".")[0] == "dfa_viz"}
+    return _dfa_viz_modules(_imports(path, name, ast.walk(ast.parse(path.read_text()))))
 
 
 def test_the_core_names_no_client_in_any_import():
@@ -117,3 +116,19 @@ def test_importing_the_core_loads_no_client():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def _unit(module: str) -> str:
+    """The client a dfa_viz module belongs to, or "core"."""
+    part = module.split(".")[1:2]
+    return part[0] if part in CLIENT_PARTS else "core"
+
+
+def test_no_module_imports_a_private_name_from_another_client_or_the_core():
+    borrowed = []
+    for p in ROOT.rglob("*.py"):
+        name = _module(p)
+        for base, names in _imports(p, name, ast.walk(ast.parse(p.read_text()))):
+            if base.split(".")[0] != "dfa_viz" or _unit(base) != _unit(name):
+                borrowed += [f"{name} <- {base}.{n}" for n in names if n.startswith("_")]
+    assert borrowed == []
