@@ -190,7 +190,7 @@ def study_shots(browser, args: Args, tmp: Path) -> list[Path]:
 
     folder = tmp / "study"
     conditions = ("none", "counterfactual", "saliency", "both")
-    freeze(Protocol(tasks=(("nav2d", 1),), conditions=conditions), folder)
+    freeze(Protocol(tasks=(("nav2d", 1),), conditions=conditions, design="within"), folder)
     app = start_study(folder, port=free_port())
     out: list[Path] = []
     seen: set[str] = set()

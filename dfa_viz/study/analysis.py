@@ -19,8 +19,13 @@ score as knowing.
     wilcoxon    per participant, the share of "yes, it matters" on TR tasks against that on TI
                 tasks (scipy.stats.wilcoxon, two-sided; only participants who had both)
     rejection   the share of TR answers saying it matters (the paper: 79%)
+    kept together   a mixed-effects logistic model (participant and task random) and an exact
+                conditional test with tasks as strata (models.py): what to read in a within
+                design, where one participant answers under every condition
+    provenance  how many answers came through the study page, in how many page sessions, and
+                the distribution of the seconds spent per question (durations.png)
 
-Writes DIR/analysis/answers.csv, accuracy.md, accuracy.png and answers.rrd.
+Writes DIR/analysis/answers.csv, accuracy.md, accuracy.png, durations.png and answers.rrd.
 """
 
 from __future__ import annotations
@@ -32,6 +37,9 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from dfa_viz.study import models
 from dfa_viz.study.answers import Store
 from dfa_viz.study.freeze import TRUTH, load_study, read_json
 from sim import PAPER_WORLDS
@@ -55,6 +63,8 @@ COLUMNS = (
     "exact",
     "precision",
     "duration_s",
+    "via",
+    "session",
 )
 WORLD_ORDER = PAPER_WORLDS
 # the paper's accuracies (Figure 4): kind -> (without, with counterfactuals) per world
@@ -138,6 +148,8 @@ def answer_rows(folder: Path) -> list[dict]:
                     "exact": int(is_exact(t, a.selected, a.none)),
                     "precision": _ratio(precision(t, a.selected, a.none)),
                     "duration_s": a.duration_s,
+                    "via": a.via,
+                    "session": a.session,
                 }
             )
     return rows
@@ -191,6 +203,9 @@ class Analysis:
     rejection: float
     """Share of TR answers saying it matters (NaN without TR answers)."""
     mean_duration_s: float
+    design: str = "between"
+    mixed: models.MixedFit | None = None
+    exact: list[models.Stratified] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
 
 
@@ -280,6 +295,9 @@ def analyse(folder: Path) -> Analysis:
         len(pairs),
         sum(tr) / len(tr) if tr else math.nan,
         sum(float(r["duration_s"]) for r in rows) / len(rows),
+        protocol.design,
+        models.mixed_model(rows, protocol.conditions),
+        models.stratified_exact(rows, protocol.conditions),
     )
 
 
@@ -291,12 +309,30 @@ def _num(x: float) -> str:
     return "–" if math.isnan(x) else f"{x:.3g}"
 
 
+def provenance(rows: list[dict]) -> str:
+    """Where the answers came from and how long they took (a paragraph of accuracy.md)."""
+    page = [r for r in rows if r["via"] == "page"]
+    sessions = len({r["session"] for r in page})
+    secs = np.array([float(r["duration_s"]) for r in rows])
+    q1, median, q3 = np.percentile(secs, [25, 50, 75])
+    other = len(rows) - len(page)
+    return (
+        f"Provenance: {len(page)} of {len(rows)} answers came through the study page, in "
+        f"{sessions} page session(s)"
+        + (f"; {other} did not (written by other code, or before answers said)" if other else "")
+        + f". Time on a question: median {median:.1f} s (quartiles {q1:.1f}–{q3:.1f} s, "
+        f"range {secs.min():.1f}–{secs.max():.1f} s); their distribution: durations.png."
+    )
+
+
 def table_md(a: Analysis) -> str:
     lines = [
         "# Study results",
         "",
         f"{len({r['participant'] for r in a.rows})} participants, {len(a.rows)} answers, "
-        f"{a.mean_duration_s:.1f} s per answer on average.",
+        f"{a.mean_duration_s:.1f} s per answer on average; {a.design}-subject design.",
+        "",
+        provenance(a.rows),
         "",
         "## Naming the cause of the failure",
         "",
@@ -333,8 +369,10 @@ def table_md(a: Analysis) -> str:
         f"TR answers saying it matters: {_pct(a.rejection)} (paper: {_pct(PAPER_REJECTION)}).  ",
         f"Wilcoxon signed-rank, TR against TI per participant ({a.pairs} pairs): "
         f"p = {_num(a.wilcoxon_p)} (paper: p < .001).",
-        "",
     ]
+    if a.mixed is not None and len({r["condition"] for r in a.rows}) > 1:
+        lines += models.markdown(a.mixed, a.exact, a.design)
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -348,7 +386,7 @@ def write_csv(path: Path, rows: list[dict]) -> Path:
 
 def write_analysis(folder: Path) -> Analysis:
     """analyse(folder) and its files under folder/analysis/."""
-    from dfa_viz.study.figures import write_plot, write_rrd
+    from dfa_viz.study.figures import write_durations, write_plot, write_rrd
 
     folder = Path(folder)
     a = analyse(folder)
@@ -358,6 +396,7 @@ def write_analysis(folder: Path) -> Analysis:
         write_csv(out / "answers.csv", a.rows),
         files.write_text(out / "accuracy.md", table_md(a)),
         write_plot(out / "accuracy.png", a.cells),
+        write_durations(out / "durations.png", a.rows),
         write_rrd(out / "answers.rrd", a),
     ]
     a.files.extend(paths)

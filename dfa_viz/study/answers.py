@@ -2,7 +2,9 @@
 
     DIR/participants.jsonl     one line per participant, in order of arrival: {"id", "number"}
     DIR/answers/<id>.jsonl     the first line the participant's plan (Question.to_json, in
-                               order); then one line per answer (Answer.to_json)
+                               order); then one line per answer (Answer.to_json, with its
+                               provenance: `via` "page" when the study page wrote it, the
+                               page session's id, the seconds on the question)
 
 Every line is written, flushed and fsynced before `append` returns (the page moves on only
 then); a last line cut short by a crash was never acknowledged and is dropped on reading. A
@@ -92,7 +94,14 @@ class Answer:
     matters: bool
     """Should it matter for what the participant asked for (True: yes, it matters)."""
     duration_s: float
-    """From the question shown to the answer given."""
+    """Time on the question: from the question shown to the answer given, in seconds."""
+    via: str = "direct"
+    """How the answer came: "page" (given on the study page, StudyPage.submit) or "direct"
+    (written through Store.answer by other code: a script, a test); "unknown" in files written
+    before answers said so."""
+    session: str = ""
+    """The page session (one browser tab's connection) that gave it; empty when not via the
+    page. A participant who resumes after a crash answers in a new session."""
 
     def to_json(self) -> dict:
         return {"type": "answer", **asdict(self), "selected": list(self.selected)}
@@ -106,6 +115,8 @@ class Answer:
             bool(d["none"]),
             bool(d["matters"]),
             float(d["duration_s"]),
+            str(d.get("via", "unknown")),
+            str(d.get("session", "")),
         )
 
 

@@ -26,7 +26,7 @@ class NewStudyArgs:
     """The new study folder."""
     protocol: Path | None = None
     """study.toml (see README "Running a user study"); left out: the paper's protocol with
-    conditions none and counterfactual, within subjects, seed 0."""
+    conditions none and counterfactual, between subjects (as the paper's), seed 0."""
 
 
 @dataclass(frozen=True)
@@ -47,8 +47,10 @@ class ServeStudyArgs:
 class AnalyseStudyArgs:
     """Score a study's answers by the paper's rule and compare the conditions: accuracy per
     world, shift kind and condition with standard errors beside the paper's, chi-squared (1)
-    between conditions per world, Wilcoxon signed-rank between TR and TI answers. Writes
-    FOLDER/analysis/answers.csv, accuracy.md, accuracy.png and answers.rrd."""
+    between conditions per world, a mixed-effects logistic model (participant and task random)
+    and an exact test by task, Wilcoxon signed-rank between TR and TI answers, each answer's
+    provenance. Writes FOLDER/analysis/answers.csv, accuracy.md, accuracy.png, durations.png
+    and answers.rrd."""
 
     folder: tyro.conf.Positional[Path]
     """The study folder."""

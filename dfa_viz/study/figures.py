@@ -1,7 +1,9 @@
-"""The study's figures: accuracy bars (matplotlib PNG) and a .rrd of the answers.
+"""The study's figures: accuracy bars and time on task (matplotlib PNGs), a .rrd of the answers.
 
 accuracy.png: a panel per world (the paper's order), a group of bars per shift kind, a bar per
 condition with its standard error; the paper's accuracies as black ticks where it has them.
+
+durations.png: the distribution of the seconds spent per question, per condition.
 
 answers.rrd (Rerun 0.41), on the `answer` timeline (answers in order of participants, then
 questions): `answers/correct`, `answers/matters`, `answers/duration_s` (scalars) and
@@ -74,6 +76,31 @@ def write_plot(path: Path, cells: list[Cell]) -> Path:
             handles = [Patch(color=COLOURS[c], label=c) for c in conds]
             handles.append(Line2D([], [], color="k", lw=2, label="paper"))
             ax.legend(handles=handles, fontsize=8, frameon=False, loc="upper right")
+    save_figure(fig, path)
+    return Path(path)
+
+
+def write_durations(path: Path, rows: list[dict]) -> Path:
+    """durations.png: the seconds spent per question, a histogram per condition (log-spaced
+    bins: a quick click and a long look both show), each answer's time as a tick below."""
+    from matplotlib.figure import Figure
+
+    secs = np.array([float(r["duration_s"]) for r in rows], np.float64)
+    low, high = max(secs.min(), 0.1), max(secs.max(), 0.2)
+    bins = np.geomspace(low * 0.9, high * 1.1, 25)
+    conds = [c for c in CONDITIONS if any(r["condition"] == c for r in rows)]
+    fig = Figure(figsize=(6.4, 3.4))
+    ax = fig.add_subplot(1, 1, 1)
+    for j, cond in enumerate(conds):
+        mine = np.clip([float(r["duration_s"]) for r in rows if r["condition"] == cond], low, None)
+        ax.hist(mine, bins=bins, color=COLOURS[cond], alpha=0.55, label=f"{cond} ({len(mine)})")
+        ax.plot(mine, np.full(len(mine), -0.3 - 0.3 * j), "|", color=COLOURS[cond], ms=8)
+    ax.set_xscale("log")
+    ax.set_xlabel("seconds on the question (log scale)")
+    ax.set_ylabel("answers")
+    ax.set_title(f"Time on task: {len(secs)} answers, median {np.median(secs):.1f} s")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, frameon=False)
     save_figure(fig, path)
     return Path(path)
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
+import uuid
 from collections.abc import Callable
 
 import numpy as np
@@ -47,6 +48,7 @@ class StudyPage:
 
     def __init__(self, client: viser.ClientHandle, study) -> None:
         self.client, self.study = client, study
+        self.session = uuid.uuid4().hex[:12]  # this tab's connection: every answer names it
         self.store: Store = study.store
         self.protocol: Protocol = study.protocol
         self.pid: str | None = None
@@ -213,6 +215,8 @@ class StudyPage:
             none=none,
             matters=self.matters.value == MATTERS[1],
             duration_s=round(time.monotonic() - self.shown_at, 3),
+            via="page",
+            session=self.session,
         )
         self.store.answer(self.pid, answer)  # on disk before the page moves on
         self.position += 1

@@ -1,7 +1,7 @@
 """A study protocol (study.toml) and the plan it gives each participant.
 
     seed = 0
-    design = "within"                       # or "between"
+    design = "between"                      # the paper's; or "within"
     conditions = ["none", "counterfactual"]  # of none, counterfactual, saliency, both
     saliency = "grad_cam"                    # the saliency condition's method
     kinds = ["object", "distractor", "other"]
@@ -17,6 +17,11 @@ for (TI) and one where it does (TR); each participant gets one of them: TI and T
 over a participant's slots (half and half) and swap from one participant to the next (every
 slot TI and TR equally often over each batch of two participants). `other` has one task per
 slot (its cause is outside the concepts).
+
+The paper's study was between subjects (each participant saw one condition), and so is the
+default; `within` is kept for studies that want every participant under every condition (its
+answers are analysed with a mixed-effects model, since one participant's answers are not
+independent: dfa_viz.study.models).
 
 Orders are balanced in blocks: over every block of as many participants as there are slots,
 each slot comes at each position once (a cyclic Latin square over a seeded order of the slots,
@@ -68,8 +73,9 @@ class Protocol:
     tabletop (12 questions per participant)."""
     conditions: tuple[str, ...] = ("none", "counterfactual")
     """What each question shows beside the failed behaviour."""
-    design: str = "within"
-    """between (one condition per participant) or within (conditions rotate over questions)."""
+    design: str = "between"
+    """between (one condition per participant: the paper's) or within (conditions rotate over
+    a participant's questions)."""
     kinds: tuple[str, ...] = KINDS
     """Which shift kinds are asked about."""
     seed: int = 0
