@@ -44,7 +44,8 @@ class Q2Args:
     carry the test task's shift, and on fresh tasks from all of what the user wants.
 
     Writes OUT/runs.csv (every run), OUT/table.md (means with 95% confidence intervals beside
-    the paper's numbers, and whether CF H beats Baseline H), OUT/plots/<world>-<shift>.png and
+    the paper's numbers, and CF H against Baseline H with one unit per seed: an exact test where
+    enough seeds differ), OUT/plots/<world>-<shift>.png and
     OUT/curves.rrd. Runs already in OUT/runs.csv are skipped, so an interrupted experiment
     resumes where it stopped. The same seeds give the same runs.csv whichever backend ran them.
     """
