@@ -9,7 +9,10 @@ one record of a run that each step returns a new copy of.
     adapt         variants over the TI concepts, a finetuned copy          -> Adaptation
     evaluate      both policies on fresh tasks, on the shift and overall   -> Evaluation
 
-`dfa run` (run_loop below), the page's jobs (dfa_viz.app.jobs) and the finetuning experiment's
+(`adapt_and_evaluate` is the last two as one step; `diagnosed` and `adapted` put a step's
+result into the record.)
+
+`dfa run` (run_loop below), the page (dfa_viz.app.state) and the finetuning experiment's
 runner (dfa_viz.experiment.runner) compose these steps; none re-implements one. The recorder
 writes a run's .rrd from its RunRecord, the page's session persists it as events, and
 `dfa run --json` prints `RunRecord.to_json()`.
@@ -216,6 +219,11 @@ def diagnose(
     return Diagnosis(result, tuple(counterfactual_rollouts(world, policy, task, result)))
 
 
+def diagnosed(record: RunRecord, diagnosis: Diagnosis) -> RunRecord:
+    """The record with the search's diagnosis; no concept marked yet."""
+    return dataclasses.replace(record, diagnosis=diagnosis, feedback=Feedback())
+
+
 def counterfactual_rollouts(
     world: World, policy: Policy, task: Task, result: SearchResult
 ) -> list[Trajectory]:
@@ -290,6 +298,46 @@ def evaluate(
     )
 
 
+def adapt_and_evaluate(
+    world: World,
+    base: Policy,
+    record: RunRecord,
+    *,
+    config: AdaptConfig,
+    known: Sequence[Trajectory] | None = None,
+    on_loss: LossCallback | None = None,
+    on_scoring: Callable[[], None] | None = None,
+) -> tuple[Adaptation, Evaluation | None]:
+    """Adapt on the record's demonstration and feedback, then score both policies on the
+    config's number of fresh tasks (`on_scoring` called in between); a world without fresh
+    tasks is not scored."""
+    assert record.demo is not None, "adapting needs a demonstration"
+    adaptation = adapt(
+        world,
+        base,
+        record.task,
+        record.demo,
+        record.feedback,
+        config=config,
+        seed=record.seed,
+        known=known,
+        on_loss=on_loss,
+    )
+    if not world.benchmark:
+        return adaptation, None
+    if on_scoring is not None:
+        on_scoring()
+    n = config.finetuning.n_eval
+    return adaptation, evaluate(world, base, adaptation.policy, record.task, n=n, seed=record.seed)
+
+
+def adapted(record: RunRecord, adaptation: Adaptation, evaluation: Evaluation | None) -> RunRecord:
+    """The record with the adaptation (and the feedback it used) and its scores."""
+    return dataclasses.replace(
+        record, adaptation=adaptation, evaluation=evaluation, feedback=adaptation.feedback
+    )
+
+
 def run_loop(
     world: World,
     policy: Policy,
@@ -317,24 +365,12 @@ def run_loop(
         config=search or SearchConfig.for_world(world),
         on_progress=on_progress,
     )
-    record = dataclasses.replace(record, diagnosis=diagnosis)
+    record = diagnosed(record, diagnosis)
     feedback = user.label(task, diagnosis.edit if diagnosis.edit is not None else EMPTY)
     record = dataclasses.replace(record, feedback=feedback)
     if policy.net is None:  # an ONNX graph: diagnosed, not finetuned
         return record
-    adaptation = adapt(
-        world,
-        policy,
-        task,
-        record.demo,
-        feedback,
-        config=config,
-        seed=seed,
-        known=known,
-        on_loss=on_loss,
+    adaptation, evaluation = adapt_and_evaluate(
+        world, policy, record, config=config, known=known, on_loss=on_loss
     )
-    evaluation = None  # a world without fresh tasks is not scored
-    if world.benchmark:
-        n = config.finetuning.n_eval
-        evaluation = evaluate(world, policy, adaptation.policy, task, n=n, seed=seed)
-    return dataclasses.replace(record, adaptation=adaptation, evaluation=evaluation)
+    return adapted(record, adaptation, evaluation)

@@ -94,7 +94,7 @@ class Canvas:
         if not (0.0 <= u <= 1.0 and 0.0 <= v <= 1.0):
             self.notify("that click missed the image: click on the picture of the task")
             return
-        self.state.demo_click(float(u), float(v))
+        self.state.edit_demo(lambda d: d.click(float(u), float(v)))
 
     # -- 3D scenes (tabletop) -----------------------------------------------------------------
     def show_scenes(self, view: View, step: int) -> None:

@@ -1,47 +1,30 @@
-"""Session events: one frozen dataclass per user action or finished job, and applying one to a
-run record, which returns a new record.
+"""Session events: one frozen dataclass per user action or finished job (applying one to a run
+record is dfa_viz.app.replay).
 
 Each event writes itself as one JSON object (`to_json`, with its "type") and reads itself back
 with every field checked (`from_json`: a UserError saying which field is wrong and what is
 accepted). The format is version 1 of the session log: sessions written before these classes
 load unchanged (fields added since are optional).
-
-Applying is pure but for what an event only names: the task is drawn again from its seed and
-the base policy rolled out, trajectory files are read back, a search's counterfactual rollouts
-are rolled out again, and a finetuning written without its scores is scored again from the
-checkpoint it saved (`Rebuild`). Live, the job that made an event passes those values in.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from dfa_viz.loop import (
-    Adaptation,
     AdaptConfig,
-    Diagnosis,
-    Evaluation,
-    RunRecord,
-    augmentation,
-    counterfactual_rollouts,
-    demonstrated,
-    judged,
 )
-from policy import Policy, training_demos
-from policy.evaluate import Score, score
+from policy.evaluate import Score
 from search import SearchResult
-from sim import check_world_name, get_world
+from sim import check_world_name
 from sim.core import (
     Edit,
     Feedback,
     Label,
-    Trajectory,
     UserError,
-    World,
     check_seed,
     check_shift,
 )
@@ -330,122 +313,3 @@ def from_json(d: Any) -> SessionStarted | Event:
         shown = repr(kind) if isinstance(kind, str) else json.dumps(kind)[:60]
         raise UserError(f"unknown event type {shown}; accepted: {', '.join(TYPES)}")
     return TYPES[kind].from_json(d)
-
-
-# -- applying events ------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Rebuild:
-    """How applying an event gets what the event only names."""
-
-    policy: Callable[[World], Policy]
-    """The base policy of a world."""
-    trajectory: Callable[[str], Trajectory]
-    """A trajectory file of the session, by name."""
-    checkpoint: Callable[[str, World], Policy]
-    """A policy folder of the session, by name."""
-
-
-def need(record: RunRecord | None, *stages: str) -> RunRecord:
-    """The record, if the loop is at one of `stages`; else a UserError saying where it is."""
-    if record is None:
-        raise UserError("pick a task first")
-    if record.stage not in stages:
-        raise UserError(
-            f"not now: the loop is at '{record.stage}', this needs {' or '.join(stages)}"
-        )
-    return record
-
-
-def apply(
-    record: RunRecord | None, event: Event, rebuild: Rebuild, computed: Any = None
-) -> RunRecord:
-    """The record after `event` (its preconditions checked: UserError if unmet). `computed` is
-    what the live job already has (the new record for a task, the demonstration, the
-    diagnosis, the adaptation and evaluation), so nothing is done twice."""
-    if isinstance(event, TaskLoaded):
-        if computed is not None:
-            return computed
-        from dfa_viz.loop import start
-
-        world = get_world(event.world)
-        if event.edit is not None:
-            from search.sweep import Example, failure_task
-
-            example = Example(event.task_seed, event.edit, False, event.pos)
-            task = failure_task(world, example)
-        else:
-            task = world.test_task(event.shift, event.task_seed)
-        return start(world, rebuild.policy(world), task, shift=event.shift, seed=event.seed)
-    if isinstance(event, Judged):
-        return judged(need(record, "judge"), event.failed)
-    if isinstance(event, Demonstrated):
-        rec = need(record, "demonstrate")
-        demo = computed if computed is not None else rebuild.trajectory(event.file)
-        if demo.scenes[0] != rec.task.scene or demo.horizon != len(rec.rollout.actions):
-            raise UserError(f"{event.file} does not start from this task's scene")
-        return demonstrated(rec, demo, event.source)
-    if isinstance(event, Searched):
-        rec = need(record, "diagnose")
-        if computed is None:
-            world = get_world(rec.world)
-            rollouts = counterfactual_rollouts(world, rebuild.policy(world), rec.task, event.result)
-            computed = Diagnosis(event.result, tuple(rollouts))
-        return dataclasses.replace(rec, diagnosis=computed, feedback=Feedback())
-    if isinstance(event, TieChosen):
-        rec = need(record, "feedback", "adapted")
-        n = min(len(rec.diagnosis.result.counterfactuals), len(rec.diagnosis.counterfactuals))
-        if not 0 <= event.index < n:
-            raise UserError(f"tie {event.index} does not exist; there are {n}")
-        labels = {(lab.slot, lab.concept): lab for lab in rec.feedback.labels}
-        diagnosis = dataclasses.replace(rec.diagnosis, tie=event.index)
-        return dataclasses.replace(rec, diagnosis=diagnosis).keeping_labels(labels)
-    if isinstance(event, Marked):
-        rec = need(record, "feedback", "adapted")
-        return rec.with_label(checked_label(get_world(rec.world), event.label))
-    if isinstance(event, Finetuned):
-        rec = need(record, "feedback", "adapted")
-        if computed is not None:
-            adaptation, evaluation = computed
-        else:
-            world = get_world(rec.world)
-            augmented: tuple[Trajectory, ...] = ()
-            if event.config is not None:  # the variants again (the same seed, the same set)
-                augmented = tuple(
-                    augmentation(
-                        world,
-                        rec.task,
-                        rec.demo,
-                        event.feedback,
-                        config=event.config,
-                        known=training_demos(world) if world.benchmark else (),
-                        seed=rec.seed,
-                    )
-                )
-            adaptation = Adaptation(
-                event.feedback,
-                augmented,
-                event.config.budget if event.config else event.n_augmented + 1,
-                event.losses,
-                rebuild.trajectory(event.rollout_file),
-            )
-            before, after = event.before, event.after
-            if (before is None or after is None) and world.benchmark:  # older: score again
-                tuned = rebuild.checkpoint(event.policy_dir, world)
-                before = score(world, rebuild.policy(world), rec.task, seed=rec.seed)
-                after = score(world, tuned, rec.task, seed=rec.seed)
-            evaluation = None if before is None or after is None else Evaluation(before, after)
-        return dataclasses.replace(
-            rec, adaptation=adaptation, evaluation=evaluation, feedback=adaptation.feedback
-        )
-    raise UserError(f"a {type(event).__name__} cannot be applied to a run")
-
-
-def checked_label(world: World, label: Label) -> Label:
-    """A mark's label with its acceptable values checked against the concept space."""
-    values = world.space.values(label.slot, label.concept)
-    bad = [v for v in label.acceptable if v not in values]
-    if bad:
-        raise UserError(f"{label.slot}.{label.concept} has no {bad}; accepted: {', '.join(values)}")
-    if label.relevant:
-        return dataclasses.replace(label, acceptable=())
-    return label

@@ -167,8 +167,8 @@ class Page:
         self.succeeded.on_click(self._guard(lambda _: s.judge(False)))
         self.use_demo.on_click(self._guard(lambda _: s.demonstrate(expert=False)))
         self.expert.on_click(self._guard(lambda _: s.demonstrate(expert=True)))
-        self.undo.on_click(self._guard(lambda _: s.demo_undo()))
-        self.clear.on_click(self._guard(lambda _: s.demo_clear()))
+        self.undo.on_click(self._guard(lambda _: s.edit_demo(lambda d: d.undo())))
+        self.clear.on_click(self._guard(lambda _: s.edit_demo(lambda d: d.clear())))
         self.finetune.on_click(self._guard(lambda _: s.finetune()))
         for label, button in self.primary.items():
             button.on_click(self._guard(lambda _, label=label: self._on_primary(label)))
@@ -365,7 +365,7 @@ class Page:
 
     def _key_handler(self, action: int):
         async def on_key(_event) -> None:  # on the event loop: keys keep their order
-            self.state.submit(lambda: self.state.demo_key(action), self.warn)
+            self.state.submit(lambda: self.state.edit_demo(lambda d: d.act(action)), self.warn)
 
         return on_key
 

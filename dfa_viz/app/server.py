@@ -25,8 +25,9 @@ from dfa_viz.app.address import DEFAULT_PORT, PageGuard, moved_note, serving_por
 from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.app.episodes import DemoEpisodes, open_demos
 from dfa_viz.app.page import Page
+from dfa_viz.app.policies import Policies
 from dfa_viz.app.sessions import Session
-from dfa_viz.app.state import LoopState, Policies
+from dfa_viz.app.state import LoopState
 from dfa_viz.configs import AdaptConfig
 from dfa_viz.foreground import wait_then_stop
 from sim import check_world_name

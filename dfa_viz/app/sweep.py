@@ -15,7 +15,8 @@ import viser
 
 from dfa_viz.app.canvas import SIZE, Canvas, ray
 from dfa_viz.app.controls import Checked, whole
-from dfa_viz.app.state import SWEEP_TASKS, LoopState
+from dfa_viz.app.offers import SWEEP_TASKS
+from dfa_viz.app.state import LoopState
 from sim.core import UserError
 
 DEFAULT_TASKS = 20

@@ -3,7 +3,7 @@ results folder, each turned into the episodes of its runs (episodes.py). Nothing
 into the folder read from.
 
 - session (session.jsonl): the session's events replayed as the page replays them
-  (dfa_viz.app.events.apply, the trajectories it saved read from the folder); a run per task
+  (dfa_viz.app.replay.apply, the trajectories it saved read from the folder); a run per task
   loaded, each with its demonstration, variants, counterfactuals, failed and finetuned
   rollouts.
 - sweep (sweep.csv): each cell's example failure (search.sweep.failure_task of its seed, edit
@@ -85,11 +85,12 @@ def known(world: World) -> list[Trajectory]:
 # -- a page session ---------------------------------------------------------------------------
 def session_episodes(folder: Path, policy_for: PolicyFor) -> Iterator[tuple[World, Episode]]:
     from dfa_viz.app import events as E
+    from dfa_viz.app import replay as R
     from dfa_viz.app.sessions import Session, SessionError, read_events
 
     entries, size, _ = read_events(folder)
     session = Session(folder, entries, size, [])  # read only: not opened, not locked
-    rebuild = E.Rebuild(
+    rebuild = R.Rebuild(
         policy=policy_for,
         trajectory=session.load_trajectory,
         checkpoint=lambda name, world: session.load_policy(name, world, base=policy_for(world)),
@@ -108,7 +109,7 @@ def session_episodes(folder: Path, policy_for: PolicyFor) -> Iterator[tuple[Worl
             yield from done(record)
             k += 1
         try:
-            record = E.apply(record, event, rebuild)
+            record = R.apply(record, event, rebuild)
         except UserError as e:
             if isinstance(e, SessionError):
                 raise

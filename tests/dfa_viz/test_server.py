@@ -426,5 +426,7 @@ def test_one_server_stays_within_bounded_memory_over_many_loops(tmp_path):
     print(f"live MB {report}; threads {threads}")  # shown with -s
     assert early > 0, report
     assert late < early / 8, f"live MB {report}"
-    assert threads[-1] <= threads[4], f"threads per loop: {threads}"
+    # a pool thread started once, late, on a loaded machine is not a leak (seen: 15 -> 16 at
+    # loop 9); a thread kept per loop would add 15 from loop 5 to loop 20
+    assert threads[-1] <= threads[4] + 2, f"threads per loop: {threads}"
     assert not lists  # the session keeps no events in memory

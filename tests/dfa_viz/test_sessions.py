@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from dfa_viz.app import events as E
+from dfa_viz.app import replay as R
 from dfa_viz.app.sessions import LOG, Session, SessionError, read_events
 from dfa_viz.configs import AdaptConfig, Finetuning
 from sim.core import Obj, Scene, Trajectory
@@ -111,18 +112,18 @@ def test_applying_events_needs_no_threads_or_browser(nav, nav_policy):
 
     task = nav.test_task("object_ti", 1)
     demo = nav.demonstrate(task)
-    rebuild = E.Rebuild(
+    rebuild = R.Rebuild(
         policy=lambda w: nav_policy,
         trajectory=lambda name: demo,
         checkpoint=lambda name, w: nav_policy,
     )
-    r = E.apply(None, E.TaskLoaded("nav2d", "object_ti", 0, 1), rebuild)
+    r = R.apply(None, E.TaskLoaded("nav2d", "object_ti", 0, 1), rebuild)
     assert isinstance(r, RunRecord) and r.stage == "judge" and r.task == task
     with pytest.raises(UserError, match="the loop is at 'judge'"):
-        E.apply(r, E.Demonstrated("demo.npz", "expert"), rebuild)
-    r2 = E.apply(r, E.Judged(True), rebuild)
+        R.apply(r, E.Demonstrated("demo.npz", "expert"), rebuild)
+    r2 = R.apply(r, E.Judged(True), rebuild)
     assert r.stage == "judge" and r2.stage == "demonstrate"
-    r3 = E.apply(r2, E.Demonstrated("demo.npz", "expert"), rebuild)
+    r3 = R.apply(r2, E.Demonstrated("demo.npz", "expert"), rebuild)
     assert r3.stage == "diagnose" and r3.demo is demo
 
 

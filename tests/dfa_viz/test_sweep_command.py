@@ -13,6 +13,7 @@ import rerun as rr
 from PIL import Image
 
 from dfa_viz.app import events as E
+from dfa_viz.app import replay as R
 from dfa_viz.cli import main
 from dfa_viz.sweep.figures import heatmap
 from dfa_viz.sweep.run import SweepJob, backend_runner
@@ -144,8 +145,8 @@ def test_a_failure_found_is_a_session_task(tmp_path):
     event = E.TaskLoaded("doorkey", E.SWEEP, ex.seed, ex.seed, ex.edit, ex.pos)
     back = E.from_json({"type": "task", **event.to_json()})
     assert back == event
-    rebuild = E.Rebuild(policy=lambda _: policy, trajectory=None, checkpoint=None)  # type: ignore[arg-type]
-    record = E.apply(None, back, rebuild)
+    rebuild = R.Rebuild(policy=lambda _: policy, trajectory=None, checkpoint=None)  # type: ignore[arg-type]
+    record = R.apply(None, back, rebuild)
     assert record.task.scene == failure_task(w, ex).scene and not record.rollout.success
     with pytest.raises(UserError):
         E.from_json({"type": "task", **event.to_json(), "shift": "object_ti"})
