@@ -10,7 +10,7 @@ size k). Undoing the planted changes is one such edit, but not always the only o
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -44,10 +44,21 @@ class Planted:
         return Edit.of(*(Change(c.slot, c.concept, c.new, c.old) for c in self.changes))
 
 
-def plant(world: Benchmark, seed: int, k: int) -> tuple[Task, tuple[Change, ...]] | None:
+def plant(
+    world: Benchmark,
+    seed: int,
+    k: int,
+    *,
+    concepts: Sequence[tuple[str, str]] | None = None,
+) -> tuple[Task, tuple[Change, ...]] | None:
     """The training task of `seed` with k distinct looks of present objects changed, each to a
     value drawn uniformly from the others; None when the scene has fewer than k looks to change.
-    Deterministic per (seed, k); nothing is checked here (see `accept`)."""
+    Deterministic per (seed, k); nothing is checked here (see `accept`).
+
+    concepts: the k looks to change, (slot, concept), the first the task's cause: a cause
+        fixed in advance (the bench's); None when one is not a look of a present object.
+        Default: k drawn at random, in the space's order.
+    """
     base = world.train_task(seed)
     rng = np.random.default_rng([seed, k, PLANT_STREAM])
     looks = [
@@ -57,11 +68,18 @@ def plant(world: Benchmark, seed: int, k: int) -> tuple[Task, tuple[Change, ...]
         for c in s.concepts
         if len(c.values) > 1
     ]
-    if len(looks) < k:
-        return None
+    if concepts is None:
+        if len(looks) < k:
+            return None
+        chosen = [looks[i] for i in sorted(rng.choice(len(looks), size=k, replace=False))]
+    else:
+        assert len(set(concepts)) == len(concepts) == k, f"{k} distinct looks, not {concepts}"
+        by_name = {(slot, c.name): (slot, c) for slot, c in looks}
+        if any(name not in by_name for name in concepts):
+            return None
+        chosen = [by_name[name] for name in concepts]
     changes = []
-    for i in sorted(rng.choice(len(looks), size=k, replace=False)):
-        slot, concept = looks[i]
+    for slot, concept in chosen:
         old = base.scene.obj(slot).value(concept.name)
         others = [v for v in concept.values if v != old]
         changes.append(Change(slot, concept.name, old, others[rng.integers(len(others))]))

@@ -15,9 +15,17 @@ import numpy as np
 from dfa_viz.bench.compositing import bench_other, compositing_rows, naive_candidate
 from dfa_viz.bench.timing import best_of
 from policy import base_policy, failing_test_task
-from search import SearchConfig, count, counterfactual_search, rollout_lockstep, singles
+from search import (
+    SearchConfig,
+    SearchResult,
+    count,
+    counterfactual_search,
+    rollout_lockstep,
+    singles,
+)
+from search.planted import plant
 from sim import get_world
-from sim.core import Task
+from sim.core import Task, Trajectory
 
 TARGETS = {
     "singles_s": 2.0,
@@ -29,27 +37,34 @@ NAIVE_SAMPLE = 50  # naive candidates timed; the per-candidate time is extrapola
 
 
 PLANTED = {
-    2: ("object.colour", "goal.shape"),
-    3: ("object.colour", "goal.shape", "goal.colour"),
-}  # the concepts a planted shift of each size changes
+    2: (("object", "colour"), ("goal", "shape")),
+    3: (("object", "colour"), ("goal", "shape"), ("goal", "colour")),
+}  # the looks a planted shift of each size changes (search.planted.plant's fixed causes)
 
 
-def planted_shift_task(world, seed: int = 0, size: int = 2) -> Task:
-    """A task only an edit of `size` changes explains: a training layout with PLANTED[size]
-    each changed to another value, drawn from `seed` (the planted size-2 or size-3 cause)."""
-    from sim.tabletop import tasks as TK
+SEEDS_TRIED = 100  # planted seeds tried for one that is what it claims
 
-    rng = np.random.default_rng([seed, 11])
-    oa, ga = TK.TRAIN_LAYOUTS[seed % len(TK.TRAIN_LAYOUTS)]
-    looks = {"object": list(TK.TRAIN_OBJECT), "goal": list(TK.TRAIN_GOAL)}
-    options = {"object.shape": TK.MANIPULATED, "goal.shape": TK.GOALS}
-    for name in PLANTED[size]:
-        slot, concept = name.split(".")
-        k = 0 if concept == "shape" else 1
-        pool = [v for v in options.get(name, world.colours) if v != looks[slot][k]]
-        looks[slot][k] = pool[rng.integers(len(pool))]
-    scene = TK.make_scene(tuple(looks["object"]), tuple(looks["goal"]), obj_area=oa, goal_area=ga)
-    return Task(TK.WORLD, scene, TK.train_reward(), "object_tr", seed, ("object", "colour"))
+
+def planted_shift(
+    world, policy, seed: int, size: int, config: SearchConfig
+) -> tuple[Task, Trajectory, SearchResult]:
+    """The first planted shift from `seed` on that is what it claims: the training task with
+    the looks PLANTED[size] each changed to another value (search.planted.plant), which the
+    policy fails, the expert solves and `config`'s search explains by an edit of `size` and by
+    none smaller; with the expert's demonstration and that search's result."""
+    for s in range(seed, seed + SEEDS_TRIED):
+        planted = plant(world, s, size, concepts=PLANTED[size])
+        assert planted is not None, f"{world.name} has no looks {PLANTED[size]} to plant"
+        task = planted[0]
+        if world.success(task, world.rollout(task, policy.act).scenes):
+            continue
+        demo = world.demonstrate(task)
+        if not demo.success:
+            continue
+        result = counterfactual_search(world, policy, task.scene, demo, config=config)
+        if result.size == size:
+            return task, demo, result
+    raise AssertionError(f"no planted size-{size} shift in seeds {seed}..{s}")
 
 
 def bench_tabletop(*, repeats: int = 3, seed: int = 0, exhaustive: bool = True) -> dict:
@@ -123,11 +138,10 @@ def _full_task(world, policy, seed: int) -> Task:
 
 
 def _first_valid(world, policy, seed: int, size: int, config: SearchConfig, repeats: int) -> dict:
-    """The search of a planted shift of `size` to its first valid edit: first_valid_s, the
-    size found, the edits of `size` in all and tried, the first valid one's rank among them
-    in prior order, and that edit."""
-    task = planted_shift_task(world, seed, size)
-    demo = world.demonstrate(task)
+    """The search of the first planted shift of `size` from `seed` on (planted_shift) to its
+    first valid edit: first_valid_s, the size found, the edits of `size` in all and tried, the
+    first valid one's rank among them in prior order, and that edit."""
+    task, demo, _ = planted_shift(world, policy, seed, size, config)
     seconds, result = best_of(
         lambda: counterfactual_search(world, policy, task.scene, demo, config=config), repeats
     )

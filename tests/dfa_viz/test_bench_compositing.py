@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dfa_viz.bench.compositing import bench_other, compositing_rows
-from dfa_viz.bench.tabletop import planted_shift_task
+from dfa_viz.bench.tabletop import PLANTED, planted_shift
 from policy import base_policy
 from search import SearchConfig, counterfactual_search
 from sim import get_world
@@ -44,10 +44,14 @@ def test_a_planted_double_shift_gives_the_same_pair_with_either_renderer(mujoco_
     """The bench's planted pairs: composited frames find what MuJoCo's frames find."""
     world = get_world("tabletop")
     policy = base_policy(world)
-    task = planted_shift_task(world, seed, 2)
-    demo = world.demonstrate(task)
     config = SearchConfig.for_world(world)
-    got = counterfactual_search(world, policy, task.scene, demo, config=config)
+    task, demo, got = planted_shift(world, policy, seed, 2, config)
+    train = world.train_task(task.seed)
+    looks = [(s.name, c.name) for s in world.space.slots for c in s.concepts]
+    changed = [
+        (s, c) for s, c in looks if train.scene.obj(s).value(c) != task.scene.obj(s).value(c)
+    ]
+    assert set(changed) == set(PLANTED[2]) and task.cause == PLANTED[2][0]
     want = counterfactual_search(mujoco_world, policy, task.scene, demo, config=config)
     assert got.size == 2, got.summary()
     assert [c.edit for c in got.counterfactuals] == [c.edit for c in want.counterfactuals]

@@ -52,6 +52,27 @@ def test_planted_tasks_are_what_they_claim(fitted):
     assert plant(world, 0, too_many) is None
 
 
+def test_a_planting_with_fixed_causes_changes_those_looks():
+    world = get_world("doorkey")
+    train = world.train_task(3)
+    looks = [
+        (s.name, c.name)
+        for s in world.space.slots
+        if train.scene.obj(s.name).present
+        for c in s.concepts
+        if len(c.values) > 1
+    ]
+    concepts = (looks[-1], looks[0])  # any two, in an order of their own
+    task, changes = plant(world, 3, 2, concepts=concepts)
+    assert [(c.slot, c.concept) for c in changes] == list(concepts)
+    assert task.cause == concepts[0] and all(c.old != c.new for c in changes)
+    assert world.apply(train.scene, Edit.of(*changes)) == task.scene
+    assert plant(world, 3, 2, concepts=concepts) == (task, changes)  # deterministic
+    absent = next(s.name for s in world.space.slots if not train.scene.obj(s.name).present)
+    concept = world.space.slot(absent).concepts[0].name
+    assert plant(world, 3, 2, concepts=(looks[0], (absent, concept))) is None
+
+
 def test_learned_prior_round_trips_json(fitted, tmp_path):
     world, _, prior, _ = fitted
     back = LearnedPrior.from_json(json.loads(json.dumps(prior.to_json())))
