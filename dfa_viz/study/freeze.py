@@ -7,8 +7,9 @@
     DIR/tasks/tNN/             failed.npz, demo.npz, counterfactual.npz (when the search found
                                one): sim.core.Trajectory files; saliency.npz (maps float32
                                (T, H, W) in [0, 1]); search.json (the search's result);
-                               view.json (what the page may show: the instruction, the choices,
-                               what the counterfactual changed)
+                               view.json (what the page may show: what the user wants in
+                               words that name nothing R' leaves open, World.intent; the
+                               choices; what the counterfactual changed)
     DIR/intro/<world>.npz      the familiarisation's pictures: the concept space, one example of
                                each shift kind, a counterfactual
 
@@ -122,7 +123,7 @@ def freeze_task(world: World, policy, slot: Slot, shift: str, protocol: Protocol
         folder / "view.json",
         {
             "world": world.name,
-            "instruction": task.reward.instruction,
+            "instruction": world.intent(task),  # not R's words: they name what may change
             "choices": choices(world, task),
             "changed": edit_table(world, task.scene, edit) if edit is not None else None,
         },

@@ -82,6 +82,8 @@ class World(abc.ABC):
         description: what the agent is and what it should do, in a sentence or two for a
             person who has never seen the world (the study's familiarisation); empty: tools
             say a training task's instruction instead.
+        intent(task): what the user wants in plain words, naming nothing R' leaves open (the
+            study's questions; default: the reward's instruction).
     """
 
     name: str
@@ -159,6 +161,14 @@ class World(abc.ABC):
             "user",
             0,
         )
+
+    def intent(self, task: Task) -> str:
+        """What the user wants in `task`, in plain words that name only what R' holds fixed:
+        never a concept it leaves open ("whatever its shape", "wherever it is"), nor the look
+        of what it says to keep clear of, nor the value of a changed look it requires (the
+        thing "as it looks here"). The study asks this, so that its wording does not say what
+        changed. By default the reward's instruction, which may name all of them."""
+        return task.reward.instruction
 
     def notes(self, task: Task) -> tuple[str, ...]:
         """What a report says about a task beside its instruction, a line each (() by

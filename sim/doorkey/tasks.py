@@ -88,6 +88,25 @@ def _instruction(colours: dict[str, str], any_slot: str | None = None) -> str:
     return f"{key}, {door} and {goal}"
 
 
+def intent(task: Task) -> str:
+    """What the user wants, naming only what R' holds fixed (World.intent): each object's
+    colour when R' requires it ("open the door" when any colour will do; "open the door as
+    it looks here" when R' requires the colour it was changed to), and "keep clear of
+    anything else on the floor" when something is to be avoided."""
+    fixed = {(s, c): v[0] for s, c, v in task.reward.allowed if len(v) == 1}
+    parts = []
+    for s in OBJ_SLOTS:
+        colour = fixed.get((s, "colour"))
+        if colour is None or (s, "colour") not in task.reward.relevant:
+            parts.append(_PHRASE[s].format("").replace("  ", " "))
+        elif task.cause == (s, "colour"):
+            parts.append(_PHRASE[s].format("").replace("  ", " ") + " as it looks here")
+        else:
+            parts.append(_PHRASE[s].format(colour))
+    text = f"{parts[0]}, {parts[1]} and {parts[2]}"
+    return text + ("; keep clear of anything else on the floor" if task.reward.avoid else "")
+
+
 def object_reward(colours: dict[str, str], *, ti_slot: str | None = None) -> Reward:
     """R' over key, door and goal colour; `ti_slot`'s colour is left open (task-irrelevant)."""
     return Reward(

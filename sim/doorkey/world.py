@@ -101,6 +101,9 @@ class DoorKeyWorld(Benchmark):
     def test_task(self, shift: str, seed: int) -> Task:
         return tasks.shifted_task(shift, seed)
 
+    def intent(self, task: Task) -> str:
+        return tasks.intent(task)
+
     def fresh_tasks(
         self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
     ) -> list[Task]:

@@ -66,6 +66,24 @@ def train_reward() -> Reward:
     )
 
 
+def fixed_looks(reward: Reward) -> dict[tuple[str, str], str]:
+    """{(slot, concept): value} of every look R' holds at one value."""
+    return {(s, c): v[0] for s, c, v in reward.allowed if len(v) == 1 and c != PRESENCE}
+
+
+def intent(task: Task) -> str:
+    """What the user wants, naming only what R' holds fixed (World.intent): "go to the red
+    X", "go to the red goal" (its shape open), "go to the goal as it looks here" (a changed
+    look R' requires), "... and keep clear of anything else" (something to avoid)."""
+    if task.cause in task.reward.relevant and task.cause[0] == "goal":
+        text = "go to the goal as it looks here"
+    else:
+        fixed = fixed_looks(task.reward)
+        words = (fixed.get(("goal", "colour")), fixed.get(("goal", "shape")) or "goal")
+        text = "go to the " + " ".join(w for w in words if w)
+    return text + (" and keep clear of anything else" if task.reward.avoid else "")
+
+
 def test_task(shift: str, seed: int) -> Task:
     check_shift(shift)
     rng = np.random.default_rng([seed, 2])

@@ -81,6 +81,9 @@ class Nav2DWorld(Benchmark):
     def test_task(self, shift: str, seed: int) -> Task:
         return TK.test_task(shift, seed)
 
+    def intent(self, task: Task) -> str:
+        return TK.intent(task)
+
     def fresh_tasks(
         self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
     ) -> list[Task]:

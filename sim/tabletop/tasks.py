@@ -93,6 +93,23 @@ def _describe(look: tuple[str, str]) -> str:
     return f"{look[1]} {look[0]}"
 
 
+def intent(task: Task) -> str:
+    """What the user wants, naming only what R' holds fixed (World.intent): "put the red
+    flower on the blue pan", "... on the blue goal" (its shape open), "... on the goal as it
+    looks here" (a changed look R' requires), "... without touching anything else"."""
+    fixed = {(s, c): v[0] for s, c, v in task.reward.allowed if len(v) == 1}
+    names = {}
+    for slot in ("object", "goal"):
+        shape, colour = fixed.get((slot, "shape")), fixed.get((slot, "colour"))
+        if task.cause is not None and task.cause[0] == slot and task.cause in task.reward.relevant:
+            names[slot] = f"{slot} as it looks here"
+        else:
+            names[slot] = " ".join(w for w in (colour, shape or slot) if w)
+    sep = ", " if names["object"].endswith(" here") else " "
+    text = f"put the {names['object']}{sep}on the {names['goal']}"
+    return text + (" without touching anything else" if task.reward.avoid else "")
+
+
 def train_reward() -> Reward:
     o, g = TRAIN_OBJECT, TRAIN_GOAL
     return Reward(

@@ -150,6 +150,9 @@ class TabletopWorld(Benchmark):
     def test_task(self, shift: str, seed: int) -> Task:
         return TK.test_task(shift, seed, self.colours)
 
+    def intent(self, task: Task) -> str:
+        return TK.intent(task)
+
     def fresh_tasks(
         self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
     ) -> list[Task]:

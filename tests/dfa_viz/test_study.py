@@ -116,6 +116,59 @@ def test_frozen_tasks_are_files_without_pickles_or_ground_truth(study):
         freeze(SMALL, study)  # a study folder is never overwritten
 
 
+def named_cause(world, task, text: str) -> list[str]:
+    """What `text` says of what may change, or of the task's cause: a word that leaves a
+    concept open ("whatever", "any", ...), the cause's concept's name or any of its values
+    (for a presence: the kind's name and every look it can take), but a value R' fixes for
+    another object ("the green goal" beside a changed door colour)."""
+    import re
+
+    from sim.core.concepts import PRESENCE
+
+    words = ["any", "whatever", "wherever", "ignore", "matter", "matters"]
+    if task.cause is not None:
+        slot, concept = task.cause
+        space = world.space
+        kind = space.slot(slot).kind
+        fixed = {
+            v[0] for s, c, v in task.reward.allowed if len(v) == 1 and space.slot(s).kind != kind
+        }
+        if concept == PRESENCE:
+            looks = [c for sl in space.slots if sl.kind == kind for c in sl.concepts]
+            words += [kind, slot, PRESENCE, "present", "absent"]
+            words += [v for c in looks if c.name != PRESENCE for v in c.values if v not in fixed]
+            words += [c.name for c in looks if c.name != PRESENCE]
+        else:
+            values = space.slot(slot).concept(concept).values
+            words += [concept, *(v for v in values if v not in fixed)]
+    low = text.lower()
+    return [w for w in words if re.search(rf"\b{re.escape(w.lower())}\b", low)]
+
+
+@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+def test_no_question_names_what_may_change_or_its_cause(name, study):
+    """The study asks World.intent: what the user wants, naming only what R' fixes. The
+    reward's own instruction gives the answer away ("go to the red goal, whatever its shape")."""
+    world = get_world(name)
+    for shift in ("object_ti", "object_tr", "distractor_ti", "distractor_tr", "other"):
+        for seed in range(6):
+            task = world.test_task(shift, seed)
+            text = world.intent(task)
+            assert not named_cause(world, task, text), (shift, seed, text)
+    leaks = [
+        world.test_task(s, 0) for s in ("object_ti", "distractor_ti", "distractor_tr", "other")
+    ]
+    assert any(named_cause(world, t, t.reward.instruction) for t in leaks), "a check that bites"
+    ti, tr = world.test_task("distractor_ti", 0), world.test_task("distractor_tr", 0)
+    assert world.intent(ti) != world.intent(tr), "TI and TR must still read differently"
+    if name == "nav2d":  # the frozen study shows exactly these words, on every question
+        truth = json.loads((study / TRUTH).read_text())
+        for tid, t in truth.items():
+            task = world.test_task(t["shift"], t["task_seed"])
+            shown = load_task(study, tid).instruction
+            assert shown == world.intent(task) and not named_cause(world, task, shown)
+
+
 def test_answers_are_appended_durably_and_resume(tmp_path):
     store = Store(tmp_path, SMALL)
     number, questions, answers = store.join("P01")
