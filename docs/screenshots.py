@@ -206,7 +206,7 @@ def study_shots(browser, args: Args, tmp: Path) -> list[Path]:
         out.append(path)
 
     try:
-        for pid in ("P01", "P02"):
+        for pid in (folder / "codes.txt").read_text().split()[:2]:
             page = browser.new_page(viewport={"width": args.width, "height": args.height})
             page.set_default_timeout(60_000)
             page.goto(app.url)

@@ -19,7 +19,8 @@ class NewStudyArgs:
     kind in nav2d and DoorKey, two in the tabletop, TI and TR half and half), the conditions
     (none, counterfactual, saliency, both), the design (between or within subjects) and a seed.
     Every task (the failed rollout, the demonstration, the counterfactual, the saliency maps)
-    is computed here, so every participant sees the same ones. Then `dfa study serve OUT`.
+    is computed here, so every participant sees the same ones. It issues the participant
+    codes to hand out (OUT/codes.txt). Then `dfa study serve OUT`.
     """
 
     out: Path
@@ -27,11 +28,15 @@ class NewStudyArgs:
     protocol: Path | None = None
     """study.toml (see README "Running a user study"); left out: the paper's protocol with
     conditions none and counterfactual, between subjects (as the paper's), seed 0."""
+    participants: Annotated[int, tyro.conf.arg(metavar="INT")] = 24
+    """How many participant codes to issue (OUT/codes.txt, printed): the study page accepts
+    only these, one participant each."""
 
 
 @dataclass(frozen=True)
 class ServeStudyArgs:
-    """Serve a frozen study to participants: each tab enters an anonymous code, goes through
+    """Serve a frozen study to participants: each tab enters a code issued by `dfa study new`
+    (OUT/codes.txt; no other is accepted), goes through
     the familiarisation and answers every question; answers are on disk before the page moves
     on, and a code entered again resumes at its first unanswered question."""
 

@@ -9,8 +9,11 @@ from sim.core import UserError
 
 
 def study_new(args: NewStudyArgs) -> None:
+    from dfa_viz.study.codes import CODES, issue
     from dfa_viz.study.freeze import freeze
     from dfa_viz.study.protocol import Protocol
+
+    issue(args.participants)  # a bad count: one line, before anything is made
 
     if args.protocol is None:
         protocol, text = Protocol().check(), None
@@ -19,12 +22,22 @@ def study_new(args: NewStudyArgs) -> None:
         text = args.protocol.read_text()
     t0 = time.perf_counter()
     frozen = freeze(
-        protocol, args.out, protocol_text=text, progress=lambda s: print(f"  {s}", flush=True)
+        protocol,
+        args.out,
+        protocol_text=text,
+        progress=lambda s: print(f"  {s}", flush=True),
+        participants=args.participants,
     )
     print(
         f"dfa study: {frozen.tasks} tasks of {', '.join(frozen.worlds)} frozen in {frozen.folder} "
         f"({len(protocol.slots)} questions per participant; {time.perf_counter() - t0:.0f} s)"
     )
+    print(
+        f"dfa study: {len(frozen.codes)} participant codes, one for each participant, in this "
+        f"order (the page accepts no other; also in {frozen.folder / CODES}):"
+    )
+    for i in range(0, len(frozen.codes), 6):
+        print("  " + "  ".join(frozen.codes[i : i + 6]))
     print(f"dfa study: next, dfa study serve {frozen.folder}")
 
 

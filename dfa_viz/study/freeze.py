@@ -12,6 +12,8 @@
                                choices; what the counterfactual changed)
     DIR/intro/<world>.npz      the familiarisation's pictures: the concept space, one example of
                                each shift kind, a counterfactual
+    DIR/codes.txt              the participant codes issued (dfa_viz.study.codes): the only
+                               ones the page accepts
 
 Every task is a pure function of the protocol and the committed base policies: the first
 test task of seed protocol.seed + index that the base policy fails (policy.failing_test_task),
@@ -29,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dfa_viz.study.codes import DEFAULT_CODES, issue, write_codes
 from dfa_viz.study.protocol import Protocol, Slot
 from sim.core import Task, Trajectory, UserError, World, files
 from sim.core.concepts import PRESENCE
@@ -85,6 +88,8 @@ class Frozen:
     folder: Path
     tasks: int
     worlds: tuple[str, ...]
+    codes: tuple[str, ...] = ()
+    """The participant codes issued, in the order to hand them out."""
 
 
 def _save_arrays(path: Path, **arrays: np.ndarray) -> None:
@@ -142,15 +147,24 @@ def freeze_task(world: World, policy, slot: Slot, shift: str, protocol: Protocol
     }
 
 
-def freeze(protocol: Protocol, out: Path, *, protocol_text: str | None = None, progress=None):
-    """Make every task of `protocol` and the familiarisation's pictures in `out` (a new or
-    empty folder); returns Frozen. The folder is written in a temporary sibling and moved into
-    place once complete, so a study folder is never half made."""
+def freeze(
+    protocol: Protocol,
+    out: Path,
+    *,
+    protocol_text: str | None = None,
+    progress=None,
+    participants: int = DEFAULT_CODES,
+):
+    """Make every task of `protocol`, the familiarisation's pictures and `participants`
+    participant codes in `out` (a new or empty folder); returns Frozen. The folder is written
+    in a temporary sibling and moved into place once complete, so a study folder is never
+    half made."""
     from dfa_viz.study.intro import intro_pictures
     from policy import base_policy
     from sim import get_world
 
     protocol.check()
+    codes = issue(participants)
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise UserError(f"{out}: already exists and is not an empty folder; choose a new --out")
@@ -178,13 +192,14 @@ def freeze(protocol: Protocol, out: Path, *, protocol_text: str | None = None, p
         _write_json(work / STUDY, {"version": 1, "protocol": protocol.to_dict(), "tasks": index})
         text = protocol_text if protocol_text is not None else _toml(protocol)
         files.write_text(work / "protocol.toml", text)
+        write_codes(work, codes)
         if out.exists():
             out.rmdir()
         work.rename(out)
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
-    return Frozen(out, n, tuple(w for w, _ in protocol.tasks))
+    return Frozen(out, n, tuple(w for w, _ in protocol.tasks), tuple(codes))
 
 
 def _toml(protocol: Protocol) -> str:

@@ -93,7 +93,7 @@ class StudyPage:
             gui.add_markdown(
                 "Thank you for taking part. You will see a robot fail at a task and say what "
                 "you think made it fail.\n\nType the **participant code** you were given "
-                "(a code such as P07, never your name) and press Start."
+                "(such as P07-K7QX) and press Start."
             )
             code = gui.add_text("Participant code", initial_value="")
             start = gui.add_button("Start")

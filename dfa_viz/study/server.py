@@ -2,7 +2,8 @@
 
 The server binds 127.0.0.1 unless told otherwise and accepts only requests from its own page
 (dfa_viz.app.address.PageGuard, as `dfa serve`). It reads the frozen tasks and the
-familiarisation's pictures, never truth.json.
+familiarisation's pictures, never truth.json. Only the participant codes issued by
+`dfa study new` (codes.txt) are accepted.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dfa_viz.app.address import serving_port, url
 from dfa_viz.app.server import App, open_server, track_pages
 from dfa_viz.foreground import wait_then_stop
 from dfa_viz.study.answers import Store, check_id
+from dfa_viz.study.codes import issued, read_codes
 from dfa_viz.study.freeze import FrozenTask, load_intro, load_study, load_task
 from dfa_viz.study.page import StudyPage
 from dfa_viz.study.protocol import Question
@@ -28,6 +30,7 @@ class Study:
         self.folder = Path(folder)
         self.protocol, self.index = load_study(self.folder)
         self.store = Store(self.folder, self.protocol)
+        self.codes = read_codes(self.folder)
         self._tasks: dict[str, FrozenTask] = {}
         self._intro: dict[str, dict] = {}
         self._open: dict[str, StudyPage] = {}
@@ -46,8 +49,10 @@ class Study:
             self._intro[world] = load_intro(self.folder, world)
         return self._intro[world]
 
-    def claim(self, pid: str, page: StudyPage) -> str:
-        pid = check_id(pid)
+    def claim(self, typed: str, page: StudyPage) -> str:
+        """The issued code `typed` names, now held by `page` (a code not issued, or open in
+        another tab: a one-line UserError). A code already used resumes its participant."""
+        pid = check_id(issued(self.codes, typed))
         with self._lock:
             holder = self._open.get(pid)
             if holder is not None and holder is not page:

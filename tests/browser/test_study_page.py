@@ -12,6 +12,7 @@ from conftest import UI, WAIT_S, ChildServer  # tests/browser/conftest.py
 from playwright.sync_api import expect
 
 from dfa_viz.study.analysis import write_analysis
+from dfa_viz.study.codes import CODES
 from dfa_viz.study.freeze import TRUTH, freeze
 from dfa_viz.study.page import MATTERS
 from dfa_viz.study.protocol import Protocol
@@ -134,8 +135,12 @@ class Participant:
 def test_three_participants_a_crash_and_the_analysis(browser, study, study_check):
     n = len(PROTOCOL.slots)
     frames: list = []
+    codes = (study / CODES).read_text().split()
     server = ChildServer(["study", "serve", str(study)])
-    p1 = Participant(browser, server.url, "P01", study, keyboard=True, frames=frames)
+    stray = Participant(browser, server.url, "P01", study, keyboard=False, frames=frames)
+    stray.page.get_by_text("P01 is not a code of this study").first.wait_for()  # not issued
+    stray.page.close()
+    p1 = Participant(browser, server.url, codes[0], study, keyboard=True, frames=frames)
     p1.through_the_introduction()
     p1.answer(0, n)
     server.kill()  # a crash mid-study: the answer given is on disk, the next one was not
@@ -143,12 +148,12 @@ def test_three_participants_a_crash_and_the_analysis(browser, study, study_check
     p1.page.close()
     server = ChildServer(["study", "serve", str(study)])
     try:
-        p1 = Participant(browser, server.url, "P01", study, keyboard=True, frames=frames)
+        p1 = Participant(browser, server.url, codes[0], study, keyboard=True, frames=frames)
         p1.page.get_by_text(f"Question 2 of {n}").first.wait_for()  # resumed where it stopped
         # two more participants at once, by mouse, their questions interleaved
-        p2 = Participant(browser, server.url, "P02", study, keyboard=False, frames=frames)
-        p3 = Participant(browser, server.url, "P03", study, keyboard=False, frames=frames)
-        twin = Participant(browser, server.url, "P02", study, keyboard=False, frames=frames)
+        p2 = Participant(browser, server.url, codes[1], study, keyboard=False, frames=frames)
+        p3 = Participant(browser, server.url, codes[2], study, keyboard=False, frames=frames)
+        twin = Participant(browser, server.url, codes[1], study, keyboard=False, frames=frames)
         twin.page.get_by_text("is open in another window").first.wait_for()  # one tab a code
         twin.page.close()
         p2.through_the_introduction()

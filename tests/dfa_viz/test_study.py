@@ -15,6 +15,7 @@ import rerun as rr
 from dfa_viz.cli import main
 from dfa_viz.study.analysis import write_analysis
 from dfa_viz.study.answers import Answer, Store
+from dfa_viz.study.codes import CODES
 from dfa_viz.study.freeze import TRUTH, freeze, load_study, load_task
 from dfa_viz.study.protocol import Protocol, plan
 from sim import get_world
@@ -29,7 +30,9 @@ def study(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("study")
     toml = root / "study.toml"
     toml.write_text('seed = 0\nconditions = ["none", "counterfactual"]\n[tasks]\nnav2d = 1\n')
-    assert main(["study", "new", "--protocol", str(toml), "--out", str(root / "s")]) == 0
+    out = root / "s"
+    args = ["--protocol", str(toml), "--out", str(out), "--participants", "4"]
+    assert main(["study", "new", *args]) == 0
     assert (root / "s" / "protocol.toml").read_text() == toml.read_text()
     return root / "s"
 
@@ -167,6 +170,40 @@ def test_no_question_names_what_may_change_or_its_cause(name, study):
             task = world.test_task(t["shift"], t["task_seed"])
             shown = load_task(study, tid).instruction
             assert shown == world.intent(task) and not named_cause(world, task, shown)
+
+
+def test_codes_are_issued_in_advance_and_only_they_are_accepted(study, tmp_path, capsys):
+    import re
+    import shutil
+
+    from dfa_viz.study.codes import issue
+    from dfa_viz.study.server import Study
+
+    codes = (study / CODES).read_text().split()
+    assert len(codes) == 4 and len(set(codes)) == 4
+    assert all(re.fullmatch(r"P0[1-4]-[A-Z0-9]{4}", c) for c in codes)
+    assert [c[:3] for c in codes] == ["P01", "P02", "P03", "P04"]  # handed out in this order
+    many = issue(200)
+    assert len({c.split("-")[1] for c in many}) > 150, "the random part is not guessable"
+    assert many[0].startswith("P001-")
+    folder = tmp_path / "s"
+    shutil.copytree(study, folder, ignore=shutil.ignore_patterns("answers", "analysis"))
+    (folder / "participants.jsonl").unlink(missing_ok=True)
+    s = Study(folder)
+    page, other = object(), object()
+    for stray in ("P99", "P01", codes[0] + "X", ""):
+        with pytest.raises(UserError, match="is not a code of this study"):
+            s.claim(stray, page)
+    assert s.claim(codes[2].lower(), page) == codes[2]
+    with pytest.raises(UserError, match="open in another window"):
+        s.claim(codes[2], other)
+    assert not (folder / "participants.jsonl").exists(), "no stray code was numbered"
+    (folder / CODES).unlink()
+    with pytest.raises(UserError, match=r"codes\.txt: missing"):
+        Study(folder)
+    err = tmp_path / "bad"
+    assert main(["study", "new", "--out", str(err), "--participants", "0"]) == 2
+    assert "from 1 to 999, not 0" in capsys.readouterr().err and not err.exists()
 
 
 def test_answers_are_appended_durably_and_resume(tmp_path):
@@ -414,6 +451,7 @@ def test_answers_given_on_the_page_say_so_and_their_times_are_plotted(study, tmp
     folder = tmp_path / "s"
     shutil.copytree(study, folder, ignore=shutil.ignore_patterns("answers", "analysis"))
     (folder / "participants.jsonl").unlink(missing_ok=True)
+    code = (folder / CODES).read_text().split()[0]
     app = start_study(folder, port=free_port())
     sessions = []
     try:
@@ -421,7 +459,16 @@ def test_answers_given_on_the_page_say_so_and_their_times_are_plotted(study, tmp
             wire = PageWire(app.url)
             try:
                 wire.wait(lambda w=wire: w.find("Participant code", "Text"), "the code field")
-                wire.update(wire.one("Participant code", "Text"), value="P01")
+                if not sessions:  # a code not issued: one line, and nobody is numbered
+                    wire.update(wire.one("Participant code", "Text"), value="P01")
+                    wire.click("Start")
+                    wire.wait(lambda w=wire: w.notes, "the refusal")
+                    assert wire.notes == [
+                        "Not yet: P01 is not a code of this study; type the code you were given"
+                    ]
+                    assert not (folder / "participants.jsonl").exists()
+                typed = f" {code.lower()} " if sessions else code  # as typed: any case, spaces
+                wire.update(wire.one("Participant code", "Text"), value=typed)
                 wire.click("Start")
                 first = f"Question {questions[0] + 1} of 3"
                 step = 1
@@ -452,11 +499,13 @@ def test_answers_given_on_the_page_say_so_and_their_times_are_plotted(study, tmp
                     )
             finally:
                 wire.close()
-            lines = (folder / "answers" / "P01.jsonl").read_text().splitlines()
+            lines = (folder / "answers" / f"{code}.jsonl").read_text().splitlines()
             sessions.append(json.loads(lines[-1])["session"])
     finally:
         app.stop()
-    answers = [json.loads(x) for x in (folder / "answers" / "P01.jsonl").read_text().splitlines()]
+    answers = [
+        json.loads(x) for x in (folder / "answers" / f"{code}.jsonl").read_text().splitlines()
+    ]
     given = [a for a in answers if a.get("type") == "answer"]
     assert len(given) == 3 and all(a["via"] == "page" for a in given)
     assert all(a["duration_s"] > 0 for a in given)
