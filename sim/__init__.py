@@ -12,8 +12,9 @@ Names come from the built-in worlds below; installed packages that declare an en
 the group "dfa.worlds" (name = factory); the environment variable DFA_WORLDS
 ("mod:Class,mod2:Class2"); a --world given as "module:Class"; and name prefixes that make a
 world from what follows them: "minigrid:<EnvId>[:tile=N][:view=partial]" turns any registered
-MiniGrid environment into a world, and "fetch:<EnvId>" any of
-gymnasium-robotics' Fetch tasks (the `robotics` extra).
+MiniGrid environment into a world, "fetch:<EnvId>" any of gymnasium-robotics' Fetch tasks, and
+"robosuite:<Env>[:robot=<Robot>][:camera=<camera>]" robosuite's Lift and Stack (both the
+`robotics` extra).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ for _name, _factory in zip(
     register_world(_name, _factory)
 register_world("minigrid", "sim.minigrid.world:minigrid_world", prefix=True)
 register_world("fetch", "sim.fetch.world:fetch_world", prefix=True)
+register_world("robosuite", "sim.robosuite.world:robosuite_world", prefix=True)
 for _env_id, _entry in (
     ("dfa/Nav2D-v0", "sim.nav2d.env:Nav2DEnv"),
     ("dfa/DoorKey-v0", "sim.doorkey.env:DoorKeyEnv"),

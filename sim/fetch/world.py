@@ -31,6 +31,7 @@ import numpy as np
 
 from sim.core import Cloning, UserError
 from sim.fetch import expert as X
+from sim.fetch import tasks as TK
 from sim.mjworld.world import MujocoWorld, SlotSpec
 
 TASKS = {
@@ -90,6 +91,7 @@ class FetchWorld(MujocoWorld):
             SlotSpec("table", body="table0"),
         )
         self.camera = CAMERA
+        self.workspace = TK.workspace(has_object)
         super().__init__(f"fetch:{env_id}", horizon=50, action_dim=4, size_px=SIZE_PX)
 
     # -- hooks ------------------------------------------------------------------------------
@@ -138,11 +140,16 @@ class FetchWorld(MujocoWorld):
         obs = env._get_obs()
         return bool(env._is_success(obs["achieved_goal"], env.goal))
 
-    def goal(self, env) -> np.ndarray:
+    def env_state(self, env) -> np.ndarray:
+        """float (3,): the environment's goal (x, y, z)."""
         return np.array(env.goal, float)
 
-    def set_goal(self, env, goal: np.ndarray) -> None:
-        env.goal = np.array(goal, float)
+    def set_env_state(self, env, state: np.ndarray) -> None:
+        env.goal = np.array(state, float)
+
+    def goal_of(self, scene) -> np.ndarray:
+        """float (3,): the goal in `scene`."""
+        return self.env_state_of(scene)
 
     # -- the expert ---------------------------------------------------------------------------
     def expert_action(self, task, scene) -> np.ndarray:
@@ -157,23 +164,15 @@ class FetchWorld(MujocoWorld):
             goal = self.goal_of(scene)
         return self._expert(grip, obj, goal, width)
 
-    # -- tasks ---------------------------------------------------------------------------------
-    def train_task(self, seed: int = 0):
-        from sim.fetch import tasks as TK
+    # -- tasks (sim.fetch.tasks) ---------------------------------------------------------
+    def reset_scene(self, seed: int, *, unseen: bool = False):
+        return TK.reset_scene(self, seed, unseen=unseen)
 
-        return TK.train_task(self, seed)
+    def keep_clear(self, scene) -> list[np.ndarray]:
+        return TK.keep_clear(self, scene)
 
-    def test_task(self, shift: str, seed: int):
-        from sim.fetch import tasks as TK
+    def way(self, scene):
+        return TK.way(self, scene)
 
-        return TK.test_task(self, shift, seed)
-
-    def fresh_tasks(self, task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False):
-        from sim.fetch import tasks as TK
-
-        return TK.fresh_tasks(self, task, n, seed, layouts=layouts, shifted=shifted)
-
-    def placements(self, task, slot: str, demo) -> list[tuple[float, ...]]:
-        from sim.fetch import tasks as TK
-
-        return TK.placements(self, task, demo)
+    def grip_pos(self, env) -> np.ndarray:
+        return np.array(env.data.site("robot0:grip").xpos)

@@ -37,14 +37,17 @@ class SlotLooks:
     geoms: tuple[int, ...]
     sites: tuple[int, ...]
     matids: tuple[int, ...]  # (len(geoms),) each geom's material as built
-    rgba: np.ndarray  # (len(geoms) + len(sites), 4) as built
+    rgba: np.ndarray  # (len(geoms) + len(sites), 4) geom_rgba and site_rgba as built
     colour: str  # the palette name of the colour as built (AS_BUILT when none matches)
 
 
-def _visual(model: mujoco.MjModel, g: int) -> bool:
-    """A geom that is drawn: in one of the groups drawn by default (0-2) and not transparent."""
+DRAWN_GROUPS = (0, 1, 2)  # the geom groups MuJoCo draws by default
+
+
+def _visual(model: mujoco.MjModel, g: int, groups: Sequence[int]) -> bool:
+    """A geom that is drawn: in one of the groups drawn and not transparent."""
     rgba = model.mat_rgba[model.geom_matid[g]] if model.geom_matid[g] >= 0 else model.geom_rgba[g]
-    return model.geom_group[g] <= 2 and rgba[3] > 0
+    return int(model.geom_group[g]) in groups and rgba[3] > 0
 
 
 def _colour(model: mujoco.MjModel, g: int) -> np.ndarray:
@@ -52,8 +55,10 @@ def _colour(model: mujoco.MjModel, g: int) -> np.ndarray:
     return np.array(model.mat_rgba[m] if m >= 0 else model.geom_rgba[g], float)
 
 
-def body_geoms(model: mujoco.MjModel, body: str) -> tuple[int, ...]:
-    """The visual geoms of `body` and of every body below it."""
+def body_geoms(
+    model: mujoco.MjModel, body: str, groups: Sequence[int] = DRAWN_GROUPS
+) -> tuple[int, ...]:
+    """The visual geoms (drawn in `groups`) of `body` and of every body below it."""
     root = model.body(body).id
     under = {root}
     for b in range(model.nbody):
@@ -63,7 +68,7 @@ def body_geoms(model: mujoco.MjModel, body: str) -> tuple[int, ...]:
         if p in under:
             under.add(b)
     return tuple(
-        g for g in range(model.ngeom) if model.geom_bodyid[g] in under and _visual(model, g)
+        g for g in range(model.ngeom) if model.geom_bodyid[g] in under and _visual(model, g, groups)
     )
 
 
@@ -76,15 +81,24 @@ def palette_name(rgb: Sequence[float]) -> str:
 
 
 def slot_looks(
-    model: mujoco.MjModel, *, body: str | None = None, site: str | None = None
+    model: mujoco.MjModel,
+    *,
+    body: str | None = None,
+    site: str | None = None,
+    groups: Sequence[int] = DRAWN_GROUPS,
 ) -> SlotLooks:
-    """A slot's geoms (a body's) or site, read from the compiled model."""
-    geoms = body_geoms(model, body) if body is not None else ()
+    """A slot's geoms (a body's, those drawn in `groups`) or site, read from the compiled
+    model."""
+    geoms = body_geoms(model, body, groups) if body is not None else ()
     sites = (model.site(site).id,) if site is not None else ()
+    shown = [_colour(model, g) for g in geoms] + [np.array(model.site_rgba[s]) for s in sites]
+    # a geom's own rgba is kept as built: MuJoCo draws a material's rgba only while the geom's
+    # is the default one
     rgba = np.array(
-        [_colour(model, g) for g in geoms] + [np.array(model.site_rgba[s], float) for s in sites]
+        [np.array(model.geom_rgba[g], float) for g in geoms]
+        + [np.array(model.site_rgba[s], float) for s in sites]
     ).reshape(-1, 4)
-    first = rgba[0] if len(rgba) else np.ones(4)
+    first = shown[0] if shown else np.ones(4)
     return SlotLooks(
         geoms, sites, tuple(int(model.geom_matid[g]) for g in geoms), rgba, palette_name(first)
     )
@@ -108,11 +122,17 @@ def paint(model: mujoco.MjModel, looks: SlotLooks, colour: str) -> None:
         model.site_rgba[s] = rgba
 
 
-def add_distractors(spec: mujoco.MjSpec, names: Sequence[str]) -> None:
-    """Spare blocks, each a free body, parked on the floor out of view until a scene brings one
-    into the workspace."""
+def add_distractors(spec: mujoco.MjSpec, names: Sequence[str], *, group: int = 0) -> None:
+    """Spare blocks, each a free body (one geom, colliding, drawn in geom group `group`),
+    parked on the floor out of view until a scene brings one into the workspace."""
     for k, name in enumerate(names):
         body = spec.worldbody.add_body(name=name, pos=park_pos(k))
+        # its inertia given, not left to the compiler (which may read it from some geom
+        # groups only: robosuite's from group 0); a solid box's
+        body.explicitinertial = True
+        body.mass = DISTRACTOR_MASS_KG
+        body.inertia = [DISTRACTOR_MASS_KG * 2 * DISTRACTOR_HALF_M**2 / 3] * 3
+        body.ipos, body.iquat = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]  # at its centre
         body.add_freejoint(name=f"{name}:joint")
         body.add_geom(
             name=name,
@@ -121,6 +141,7 @@ def add_distractors(spec: mujoco.MjSpec, names: Sequence[str]) -> None:
             mass=DISTRACTOR_MASS_KG,
             rgba=[*PALETTE["blue"], 1.0],
             condim=3,
+            group=group,
         )
 
 

@@ -2,20 +2,27 @@
 worlds.
 
 A package's environment comes in through a few hooks (`open_env`, `env_step`, `env_success`,
-`goal`/`set_goal`, `slot_specs`); everything else is here:
+`slot_specs`, and where the environment keeps state outside MuJoCo's, `env_state`/
+`set_env_state`; where it is not a gymnasium MujocoEnv, `physics`, `camera` and
+`drawn_groups`); everything else is here:
 
-Scene     agent = (t, success, goal x, y, z, *physics state): `success` the environment's own
-          verdict after its last step (1.0 or 0.0), the state MuJoCo's full integration
-          state (mj_getState, mjSTATE_INTEGRATION): restoring it and stepping through the
+Scene     agent = (t, success, *environment state, *physics state): `success` the environment's
+          own verdict after its last step (1.0 or 0.0); the environment state what its step
+          reads beside MuJoCo's (Fetch: its goal; robosuite: its gripper's commanded opening),
+          a fixed number of floats; the physics state MuJoCo's full integration state
+          (mj_getState, mjSTATE_INTEGRATION): restoring both and stepping through the
           environment's own step gives the environment's own rollout. Each slot's Obj holds its
           colour (a palette name) and, for bodies, where it is (x, y, z); a distractor's pos is
           where it stands once present.
-Render    the environment's own camera (the pixels of its `render()`), each slot painted in the
-          scene's colour
+Render    the environment's own camera (the pixels of its `render()`: a free camera set as its
+          default_camera_config, or one of the model's cameras by name), drawing the geom
+          groups it draws, each slot painted in the scene's colour
 Dynamics  the environment's own step (controller, frame skip, callbacks), one scene at a time
           on one MjData: restore, step, read back
 Success   the environment's own (e.g. Fetch's info["is_success"]) after the last step: kept in
           the scene as its step reported it (its sites lag one physics step behind the state)
+Tasks     sim.mjworld.tasks, from where the package's tasks start (`reset_scene`) and what its
+          table offers (`workspace`, `keep_clear`, `way`, `grip_pos`)
 
 Distractors are spare free blocks added to the model once (MjSpec), parked out of view while
 absent, where they touch nothing and gravity does not move them (so the rest steps exactly as in
@@ -32,9 +39,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core import Benchmark, Concept, ConceptSpace, Obj, Scene, Slot, Task, UserError
+from sim.core import (
+    Benchmark,
+    Concept,
+    ConceptSpace,
+    Obj,
+    Scene,
+    Slot,
+    Task,
+    Trajectory,
+    UserError,
+)
 
-GOAL = slice(2, 5)  # agent[GOAL] = the goal (x, y, z); agent[:2] = (t, success)
+ENV_STATE_AT = 2  # agent[:2] = (t, success); agent[2:head] = the environment's own state
 AVOID_M = 0.02  # an avoided distractor may not move further than this
 COLOUR = "colour"
 STATE_BITS = None  # mujoco.mjtState.mjSTATE_INTEGRATION, read when MuJoCo is imported
@@ -59,9 +76,15 @@ class MujocoWorld(Benchmark):
     demo_input = "file"
     distractors: tuple[str, ...] = ("distractor0",)
     slot_specs: tuple[SlotSpec, ...] = ()
-    camera: dict = {}
-    """The free camera frames are drawn from (distance, azimuth, elevation, lookat), as the
-    environment's default_camera_config gives it."""
+    camera: dict | str = {}
+    """The camera frames are drawn from: a free camera (distance, azimuth, elevation, lookat),
+    as a gymnasium MujocoEnv's default_camera_config gives it, or a camera of the model by
+    name."""
+    workspace = None
+    """A sim.mjworld.tasks.Workspace: where distractors may stand, what the shifts recolour."""
+    drawn_groups: tuple[int, ...] = (0, 1, 2)
+    """The geom groups the environment's camera draws (MuJoCo's default: 0, 1 and 2); a slot's
+    visual geoms are those in these groups, and a distractor's block is in the first."""
 
     def __init__(self, name: str, *, horizon: int, action_dim: int, size_px: int) -> None:
         self.name, self.horizon, self.action_dim = name, horizon, action_dim
@@ -83,8 +106,11 @@ class MujocoWorld(Benchmark):
                 Slot(spec.name, (Concept(COLOUR, colours),), optional, "distractor" * optional)
             )
         self.space = ConceptSpace(tuple(slots))
+        from sim.mjworld.tasks import offered_shifts
+
+        self.shifts = offered_shifts(self.workspace)
         self.nstate = len(self._state(env))
-        self.head = GOAL.stop  # agent[head:] = the physics state
+        self.head = ENV_STATE_AT + len(self.env_state(env))  # agent[head:] = the physics state
 
     def all_slots(self) -> tuple[SlotSpec, ...]:
         """The package's slots, then the distractors (each a body that moves)."""
@@ -105,12 +131,37 @@ class MujocoWorld(Benchmark):
     def env_success(self, env) -> bool:
         """The environment's own success in its current state (for a scene no step made)."""
 
-    @abc.abstractmethod
-    def goal(self, env) -> np.ndarray:
-        """float (3,): the environment's goal."""
+    def env_state(self, env) -> np.ndarray:
+        """float (n,), the same n for every state: what the environment's step reads beside
+        MuJoCo's state (e.g. its goal); none by default."""
+        return np.zeros(0)
+
+    def set_env_state(self, env, state: np.ndarray) -> None:
+        """Put back what `env_state` read."""
 
     @abc.abstractmethod
-    def set_goal(self, env, goal: np.ndarray) -> None: ...
+    def reset_scene(self, seed: int, *, unseen: bool = False) -> Scene:
+        """A scene from the environment's own reset, seeded: default looks, no distractor;
+        `unseen`: its object where no training task puts it."""
+
+    @abc.abstractmethod
+    def keep_clear(self, scene: Scene) -> list[np.ndarray]:
+        """The (x, y) an added distractor keeps clear of (objects, goal, gripper's start)."""
+
+    def way(self, scene: Scene) -> tuple[np.ndarray, np.ndarray] | None:
+        """(from, to) (x, y) of what the task carries (a distractor in the way stands beside
+        it); None: nothing is carried across the table."""
+        return None
+
+    @abc.abstractmethod
+    def grip_pos(self, env) -> np.ndarray:
+        """float (3,): the gripper where the environment is now."""
+
+    def physics(self, env) -> tuple:
+        """(mujoco.MjModel, mujoco.MjData) the environment steps (a gymnasium MujocoEnv's own
+        by default)."""
+        u = env.unwrapped
+        return u.model, u.data
 
     # -- the environment --------------------------------------------------------------------
     def _open(self):
@@ -122,27 +173,30 @@ class MujocoWorld(Benchmark):
 
                 global STATE_BITS
                 STATE_BITS = mujoco.mjtState.mjSTATE_INTEGRATION
-                env = self.open_env(lambda spec: M.add_distractors(spec, self.distractors))
-                m = env.unwrapped.model
+                group = self.drawn_groups[0]
+                env = self.open_env(lambda s: M.add_distractors(s, self.distractors, group=group))
+                m, _ = self.physics(env)
                 for spec in self.all_slots():
-                    self._looks[spec.name] = M.slot_looks(m, body=spec.body, site=spec.site)
+                    self._looks[spec.name] = M.slot_looks(
+                        m, body=spec.body, site=spec.site, groups=self.drawn_groups
+                    )
                 self._env = env
             return self._env
 
-    @staticmethod
-    def _state(env) -> np.ndarray:
+    def _state(self, env) -> np.ndarray:
         import mujoco
 
-        u = env.unwrapped
-        state = np.empty(mujoco.mj_stateSize(u.model, STATE_BITS))
-        mujoco.mj_getState(u.model, u.data, state, STATE_BITS)
+        m, d = self.physics(env)
+        state = np.empty(mujoco.mj_stateSize(m, STATE_BITS))
+        mujoco.mj_getState(m, d, state, STATE_BITS)
         return state
 
-    def goal_of(self, scene: Scene) -> np.ndarray:
-        return np.asarray(scene.agent[GOAL], float)
+    def env_state_of(self, scene: Scene) -> np.ndarray:
+        """float (n,): the environment's own state in `scene` (see env_state)."""
+        return np.asarray(scene.agent[ENV_STATE_AT : self.head], float)
 
     def restore(self, scene: Scene):
-        """Put `scene` into the environment (state, goal, distractors, colours) with every
+        """Put `scene` into the environment (its states, distractors, colours) with every
         derived quantity computed from the state (mj_forward), as the environment's render()
         leaves it before the next step of an image policy's loop; returns the environment."""
         import mujoco
@@ -150,48 +204,48 @@ class MujocoWorld(Benchmark):
         from sim.mjworld import model as M
 
         env = self._open()
-        u = env.unwrapped
+        model, data = self.physics(env)
         state = np.asarray(scene.agent[self.head :], float)
         if len(state) != self.nstate:
             raise UserError(
                 f"{self.name}: a scene's physics state has {len(state)} numbers, not "
                 f"{self.nstate} (a scene of another model?)"
             )
-        mujoco.mj_setState(u.model, u.data, state, STATE_BITS)
+        mujoco.mj_setState(model, data, state, STATE_BITS)
         for k, slot in enumerate(self.distractors):
             o = scene.obj(slot)
-            joint = u.model.joint(f"{slot}:joint")
+            joint = model.joint(f"{slot}:joint")
             qa, va = joint.qposadr[0], joint.dofadr[0]
-            parked = np.abs(u.data.qpos[qa : qa + 3] - M.park_pos(k)).max() < 0.01
-            M.take_part(u.model, self._looks[slot], o.present)
+            parked = np.abs(data.qpos[qa : qa + 3] - M.park_pos(k)).max() < 0.01
+            M.take_part(model, self._looks[slot], o.present)
             if not o.present:
-                u.data.qpos[qa : qa + 7] = [*M.park_pos(k), 1.0, 0.0, 0.0, 0.0]
-                u.data.qvel[va : va + 6] = 0.0
+                data.qpos[qa : qa + 7] = [*M.park_pos(k), 1.0, 0.0, 0.0, 0.0]
+                data.qvel[va : va + 6] = 0.0
             elif parked:  # brought into the workspace: it starts where the scene says
-                u.data.qpos[qa : qa + 7] = [*o.pos[:3], 1.0, 0.0, 0.0, 0.0]
-                u.data.qvel[va : va + 6] = 0.0
-        self.set_goal(env, self.goal_of(scene))
+                data.qpos[qa : qa + 7] = [*o.pos[:3], 1.0, 0.0, 0.0, 0.0]
+                data.qvel[va : va + 6] = 0.0
+        self.set_env_state(env, self.env_state_of(scene))
         for slot, looks in self._looks.items():
-            M.paint(u.model, looks, scene.obj(slot).value(COLOUR))
-        mujoco.mj_forward(u.model, u.data)
+            M.paint(model, looks, scene.obj(slot).value(COLOUR))
+        mujoco.mj_forward(model, data)
         return env
 
     def scene_of(self, env, t: int, like: Scene, success: bool | None = None) -> Scene:
         """The environment's current state as a scene: `like`'s looks, the places as they are;
         `success` as its last step said (None: judged on the state as it is)."""
-        u = env.unwrapped
+        _, data = self.physics(env)
         objects = []
         for spec in self.all_slots():
             o = like.obj(spec.name)
             pos = o.pos
             if spec.moves and (o.present or spec.name not in self.distractors):
-                pos = tuple(round(float(v), 9) for v in u.data.body(spec.body).xpos)
+                pos = tuple(round(float(v), 9) for v in data.body(spec.body).xpos)
             objects.append(Obj(o.slot, o.present, o.values, pos))
-        goal = tuple(float(v) for v in self.goal(env))
+        own = map(float, self.env_state(env))
         if success is None:
             success = self.env_success(env)
         state = map(float, self._state(env))
-        return Scene(self.name, tuple(objects), (float(t), float(success), *goal, *state))
+        return Scene(self.name, tuple(objects), (float(t), float(success), *own, *state))
 
     # -- appearance ---------------------------------------------------------------------------
     def before_render(self, env) -> None:
@@ -199,25 +253,32 @@ class MujocoWorld(Benchmark):
         moved to the goal); nothing by default."""
 
     def _renderer(self):
-        """One mujoco.Renderer on the environment's model and a free camera set as the
-        environment's default_camera_config sets its own: the same pixels as its render()."""
+        """One mujoco.Renderer on the environment's model, its camera (a free one set as the
+        environment's default_camera_config sets its own, or the model's camera of that name)
+        and the geom groups it draws: the same pixels as its render()."""
         if self._camera is None:
             import mujoco
 
             from sim.mjworld.gl import release_egl
 
-            model = self._open().unwrapped.model
+            model, _ = self.physics(self._open())
             renderer = mujoco.Renderer(model, self.size_px, self.size_px)
             release_egl()  # the constructor left the context current in this thread
             atexit.register(renderer.close)  # before EGL itself is let go at exit
-            cam = mujoco.MjvCamera()
-            cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-            for key, value in self.camera.items():
-                if key == "lookat":
-                    cam.lookat[:] = value
-                else:
-                    setattr(cam, key, value)
-            self._camera = (renderer, cam)
+            cam = self.camera
+            if isinstance(cam, dict):
+                cam = mujoco.MjvCamera()
+                cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+                for key, value in self.camera.items():
+                    if key == "lookat":
+                        cam.lookat[:] = value
+                    else:
+                        setattr(cam, key, value)
+            option = mujoco.MjvOption()
+            option.geomgroup[:] = [
+                int(g in self.drawn_groups) for g in range(len(option.geomgroup))
+            ]
+            self._camera = (renderer, cam, option)
         return self._camera
 
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
@@ -226,12 +287,12 @@ class MujocoWorld(Benchmark):
 
         out = np.empty((len(scenes), *self.obs_shape), np.uint8)
         with self._lock:
-            renderer, cam = self._renderer()
+            renderer, cam, option = self._renderer()
             with current(renderer):
                 for b, scene in enumerate(scenes):
                     env = self.restore(scene)
                     self.before_render(env)
-                    renderer.update_scene(env.unwrapped.data, camera=cam)
+                    renderer.update_scene(self.physics(env)[1], camera=cam, scene_option=option)
                     renderer.render(out=out[b])
         return out
 
@@ -267,3 +328,26 @@ class MujocoWorld(Benchmark):
             if a.present and np.linalg.norm(np.subtract(a.pos[:3], b.pos[:3])) > AVOID_M:
                 return False
         return self.succeeds(last)
+
+    # -- tasks (sim.mjworld.tasks) ------------------------------------------------------------
+    def train_task(self, seed: int = 0) -> Task:
+        from sim.mjworld import tasks as MT
+
+        return MT.train_task(self, seed)
+
+    def test_task(self, shift: str, seed: int) -> Task:
+        from sim.mjworld import tasks as MT
+
+        return MT.test_task(self, shift, seed)
+
+    def fresh_tasks(
+        self, task: Task, n: int, seed: int, *, layouts: str = "task", shifted: bool = False
+    ) -> list[Task]:
+        from sim.mjworld import tasks as MT
+
+        return MT.fresh_tasks(self, task, n, seed, layouts=layouts, shifted=shifted)
+
+    def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
+        from sim.mjworld import tasks as MT
+
+        return MT.placements(self, task, demo)

@@ -1,6 +1,6 @@
 """`dfa run` on the worlds beyond the paper's: a plain gymnasium environment through
-sim.gymenv (docs/examples/grid_reacher.py), the Fetch tasks and MiniGrid's missions read by the
-simulated user."""
+sim.gymenv (docs/examples/grid_reacher.py), the Fetch and robosuite tasks and MiniGrid's
+missions read by the simulated user."""
 
 from __future__ import annotations
 
@@ -21,6 +21,21 @@ def test_what_is_not_a_fetch_task_is_one_line(capsys):
     assert main(["run", "--world", "fetch:FetchJuggle-v4"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not a Fetch task; accepted: FetchPickAndPlace-v4" in err[0]
+
+
+@pytest.mark.parametrize(
+    "world, said",
+    [
+        ("robosuite:Juggle", "not a robosuite task offered here; accepted: Lift, Stack"),
+        ("robosuite:Lift:robot=Robby", "unknown option 'robot=Robby'; accepted: robot=Panda|"),
+        ("robosuite:Lift:camera=nope", "no camera 'nope' in the model; accepted: frontview, "),
+    ],
+)
+def test_what_robosuite_does_not_offer_is_one_line(world, said, capsys):
+    """An unknown env, robot or camera: one line naming what is accepted, exit 2."""
+    assert main(["run", "--world", world]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and said in err[0], err
 
 
 @pytest.mark.slow

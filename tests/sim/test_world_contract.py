@@ -1,6 +1,6 @@
 """One contract for every world (sim.contract, the same checks `dfa check-world` runs): the
-registered ones, MiniGrid environments and gymnasium-robotics' Fetch tasks made into worlds,
-and the example worlds of
+registered ones, MiniGrid environments, gymnasium-robotics' Fetch tasks and robosuite's Lift
+and Stack made into worlds, and the example worlds of
 docs/bring-your-own.md — corridor (a World written out) and gridreacher (a gymnasium
 environment through sim.gymenv). A world is tested the day it exists."""
 
@@ -24,6 +24,7 @@ MINIGRID = [
     "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12",
 ]
 FETCH = ["fetch:FetchPickAndPlace-v4", "fetch:FetchPush-v4", "fetch:FetchReach-v4"]
+ROBOSUITE = ["robosuite:Lift", "robosuite:Stack"]
 
 
 def _register_examples() -> None:
@@ -34,7 +35,7 @@ def _register_examples() -> None:
 
 
 _register_examples()
-WORLDS = [n for n in sim.world_names() if not n.endswith(":...")] + MINIGRID + FETCH
+WORLDS = [n for n in sim.world_names() if not n.endswith(":...")] + MINIGRID + FETCH + ROBOSUITE
 
 
 @pytest.fixture(scope="module", params=WORLDS)

@@ -1,0 +1,1 @@
+"""robosuite's manipulation environments as worlds (`robosuite:<Env>`); see sim.robosuite.world."""
