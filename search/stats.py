@@ -1,5 +1,6 @@
-"""95% intervals (Wilson's for a rate, Student's t and the bootstrap for a mean) and exact
-tests over independent units (the signed-rank test, Holm's correction, the units a test needs)."""
+"""95% intervals (Wilson's for a rate, Newcombe's for the difference of two paired rates,
+Student's t and the bootstrap for a mean) and exact tests over independent units (the
+signed-rank test, Holm's correction, the units a test needs)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,32 @@ def wilson(k: int, n: int) -> tuple[float, float]:
     centre = (p + z2 / (2 * n)) / (1 + z2 / n)
     half = Z95 * math.sqrt(p * (1 - p) / n + z2 / (4 * n * n)) / (1 + z2 / n)
     return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def newcombe_paired(both: int, first: int, second: int, neither: int) -> tuple[float, float]:
+    """95% interval of p1 - p2 for paired binary outcomes (Newcombe 1998, Stat Med 17:2635,
+    method 10: the Wilson intervals of p1 and p2 squared and added with the correlation of the
+    pairs, continuity-corrected phi). both: pairs where both outcomes are 1; first: only the
+    first; second: only the second; neither. p1 = (both + first) / n, p2 = (both + second) / n.
+    (nan, nan) when there are no pairs."""
+    n = both + first + second + neither
+    if n == 0:
+        return (math.nan, math.nan)
+    p1, p2 = (both + first) / n, (both + second) / n
+    l1, u1 = wilson(both + first, n)
+    l2, u2 = wilson(both + second, n)
+    margins = (both + first) * (second + neither) * (both + second) * (first + neither)
+    phi = 0.0
+    if margins:
+        cross = both * neither - first * second
+        corrected = cross - n / 2 if cross > n / 2 else (cross if cross < 0 else 0.0)
+        phi = corrected / math.sqrt(margins)
+    d = p1 - p2
+    low = d - math.sqrt(max(0.0, (p1 - l1) ** 2 - 2 * phi * (p1 - l1) * (u2 - p2) + (u2 - p2) ** 2))
+    high = d + math.sqrt(
+        max(0.0, (u1 - p1) ** 2 - 2 * phi * (u1 - p1) * (p2 - l2) + (p2 - l2) ** 2)
+    )
+    return (max(-1.0, low), min(1.0, high))
 
 
 def t_interval(values: Sequence[float]) -> tuple[float, float, float]:

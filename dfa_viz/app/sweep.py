@@ -25,8 +25,9 @@ PLANE = 1.4 * SIZE  # the heatmap's side in scene units (the view shows more tha
 PICK = "pick a failure on the heatmap (in the 3D view)"
 INTRO = (
     "Every single concept edit (each value of each concept of each object, each object added "
-    "or removed) rolled out on training tasks: how often the policy then fails what the task "
-    "asks. **Run sweep**, then click a cell of the heatmap to diagnose that failure."
+    "or removed) rolled out on training tasks: how much more often the policy then fails what "
+    "the task asks than on the same tasks unedited. **Run sweep**, then click a cell of the "
+    "heatmap to diagnose that failure."
 )
 
 
@@ -160,16 +161,28 @@ def summary_text(result, shown: int = 5) -> str:
     """The sweep in a few lines: the worst concepts and edits."""
     lines = [
         f"**{result.world}**: {len(result.cells)} single edits on {result.tasks} tasks "
-        f"({result.distinct} distinct), {result.rollouts} rollouts.",
+        f"({result.distinct} distinct), {result.rollouts} rollouts. The heatmap shows each "
+        "edit's failure rate minus the same tasks' unedited (points).",
         "",
-        "| concept | fails |",
-        "|---|---|",
+        "| concept | fails | unedited | difference |",
+        "|---|---|---|---|",
     ]
     lines += [
-        f"| {c.slot}.{c.concept} | {c.failure_rate:.0%} of {c.n} |"
+        f"| {c.slot}.{c.concept} | {c.failure_rate:.0%} of {c.n} | {c.control_rate:.0%} | "
+        f"{_points(c)} |"
         for c in result.concepts[:shown]
         if c.n
     ]
-    lines += ["", "| edit | fails |", "|---|---|"]
-    lines += [f"| {c.label} | {c.failure_rate:.0%} of {c.n} |" for c in result.cells[:shown] if c.n]
+    lines += ["", "| edit | fails | unedited | difference |", "|---|---|---|---|"]
+    lines += [
+        f"| {c.label} | {c.failure_rate:.0%} of {c.n} | {c.control_rate:.0%} | {_points(c)} |"
+        for c in result.cells[:shown]
+        if c.n
+    ]
     return "\n".join(lines)
+
+
+def _points(c) -> str:
+    """The difference from the control in points, with its 95% interval."""
+    lo, hi = c.difference_ci
+    return f"{100 * c.difference:+.0f} ({100 * lo:+.0f} to {100 * hi:+.0f})"

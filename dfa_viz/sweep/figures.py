@@ -1,10 +1,11 @@
-"""The sweep's pictures (matplotlib's Agg canvas, no pyplot state): the heatmap of failure
-rates (slot.concept x value), which also says which cell a point of it shows, and a bar chart
-per concept for the recording.
+"""The sweep's pictures (matplotlib's Agg canvas, no pyplot state): the heatmap of each edit's
+difference from the control arm (slot.concept x value), which also says which cell a point of
+it shows, and a bar chart per concept for the recording.
 
 The heatmap has one panel per set of values (e.g. the colours; the shapes; present/absent),
-a row per slot.concept that takes them: each cell the failure rate of that edit over the
-sweep's trials, grey where it never applies (the value every task already has).
+a row per slot.concept that takes them: each cell the failure rate of that edit minus the
+failure rate of the same tasks unedited (red: the edit breaks the policy; blue: it helps),
+grey where it never applies (the value every task already has).
 """
 
 from __future__ import annotations
@@ -90,8 +91,8 @@ def groups(space: ConceptSpace) -> list[tuple[str, tuple[str, ...], list[tuple[s
 
 
 def heatmap(space: ConceptSpace, result: SweepResult) -> Heatmap:
-    """The failure rate of every cell, a panel per set of values (laid out in inches, so
-    that each cell's place in the image is known exactly)."""
+    """The difference from the control of every cell, a panel per set of values (laid out in
+    inches, so that each cell's place in the image is known exactly)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -103,12 +104,12 @@ def heatmap(space: ConceptSpace, result: SweepResult) -> Heatmap:
         labels_in = 0.2 + 0.07 * max(len(values[k]) for k in ticks)
         panels.append((name, values, rows, cell * len(values), ticks, labels_in))
     width = max(5.5, LEFT_IN + max(p[3] for p in panels) + RIGHT_IN)
-    height = 2 * TITLE_IN + 0.2 + sum(TITLE_IN + len(p[2]) * ROW_IN + p[5] for p in panels)
+    height = 3 * TITLE_IN + 0.2 + sum(TITLE_IN + len(p[2]) * ROW_IN + p[5] for p in panels)
     fig = Figure(figsize=(width, height), dpi=DPI)
     canvas = FigureCanvasAgg(fig)
-    rates = {c.key: c.failure_rate for c in result.cells if not c.is_pair}
+    rates = {c.key: c.difference for c in result.cells if not c.is_pair}
     cmap = _cmap()
-    top = height - 2 * TITLE_IN - 0.2
+    top = height - 3 * TITLE_IN - 0.2
     axes = []
     image = None
     for name, values, rows, w, ticks, labels_in in panels:
@@ -119,18 +120,18 @@ def heatmap(space: ConceptSpace, result: SweepResult) -> Heatmap:
         grid = np.array(
             [[rates.get((s, c, v), math.nan) for v in values] for s, c in rows], np.float64
         )  # (rows, values)
-        image = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=0, vmax=1, aspect="auto")
+        image = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=-1, vmax=1, aspect="auto")
         ax.set_yticks(range(len(rows)), [f"{s}.{c}" for s, c in rows], fontsize=8)
         ax.set_xticks(ticks, [values[k] for k in ticks], fontsize=7, rotation=90)
         ax.set_title(f"{name} ({len(values)} values)", fontsize=9, loc="left")
         if len(values) <= ANNOTATED_COLUMNS:
             for r, k in np.ndindex(grid.shape):
                 if grid[r, k] == grid[r, k]:
-                    colour = "white" if grid[r, k] > 0.6 else "black"
+                    colour = "white" if abs(grid[r, k]) > 0.6 else "black"
                     ax.text(
                         k,
                         r,
-                        f"{grid[r, k]:.0%}",
+                        f"{100 * grid[r, k]:+.0f}",
                         ha="center",
                         va="center",
                         fontsize=7,
@@ -138,15 +139,18 @@ def heatmap(space: ConceptSpace, result: SweepResult) -> Heatmap:
                     )
         axes.append((ax, rows, values))
     fig.suptitle(
-        f"{result.world} · {result.policy or 'policy'}: failure rate of each single edit\n"
-        f"over {result.tasks} tasks (grey: never applies)",
+        f"{result.world} · {result.policy or 'policy'}: each single edit's failure rate\n"
+        f"minus the same tasks' unedited (points; {result.distinct} distinct tasks\n"
+        f"of {result.tasks}; grey: never applies)",
         fontsize=9,
         x=0.02,
         ha="left",
     )
     if image is not None:
         bar = fig.add_axes(((width - RIGHT_IN + 0.25) / width, 0.1, 0.15 / width, 0.75))
-        fig.colorbar(image, cax=bar).set_label("failure rate", fontsize=8)
+        colour_bar = fig.colorbar(image, cax=bar)
+        colour_bar.set_label("Δ failure rate", fontsize=8)
+        bar.yaxis.set_label_position("left")
     canvas.draw()
     pixels = np.asarray(canvas.buffer_rgba())[..., :3].copy()  # (H, W, 3) uint8
     h_px = pixels.shape[0]
@@ -160,7 +164,7 @@ def heatmap(space: ConceptSpace, result: SweepResult) -> Heatmap:
 def _cmap():
     from matplotlib import colormaps
 
-    return colormaps["magma_r"].with_extremes(bad=NOT_APPLIED)
+    return colormaps["RdBu_r"].with_extremes(bad=NOT_APPLIED)
 
 
 def png_bytes(image: np.ndarray) -> bytes:
@@ -173,28 +177,29 @@ def png_bytes(image: np.ndarray) -> bytes:
 
 
 def concept_bars(result: SweepResult, slot: str, concept: str) -> np.ndarray | None:
-    """uint8 (H, W, 3): the failure rate of each value of slot.concept with its 95% interval
-    (None where no cell of it applied)."""
+    """uint8 (H, W, 3): the difference from the control of each value of slot.concept with its
+    95% interval (None where no cell of it applied)."""
     cells = [c for c in result.cells if (c.slot, c.concept) == (slot, concept) and c.n]
     if not cells:
         return None
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    cells.sort(key=lambda c: -c.failure_rate)
+    cells.sort(key=lambda c: -c.difference)
     fig = Figure(figsize=(max(4.8, 0.16 * len(cells) + 1.5), 3.0), dpi=DPI)
     canvas = FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     x = np.arange(len(cells))
-    rates = np.array([c.failure_rate for c in cells])
-    lo = np.array([c.failure_ci[0] for c in cells])
-    hi = np.array([c.failure_ci[1] for c in cells])
-    ax.bar(x, rates, 0.8, color=_cmap()(rates))
-    err = np.maximum(0.0, [rates - lo, hi - rates])  # (2, n); Wilson's bound rounds below 1
+    rates = np.array([c.difference for c in cells])
+    lo = np.array([c.difference_ci[0] for c in cells])
+    hi = np.array([c.difference_ci[1] for c in cells])
+    ax.bar(x, rates, 0.8, color=_cmap()((rates + 1) / 2))
+    err = np.maximum(0.0, [rates - lo, hi - rates])  # (2, n); the bounds may round inside
     ax.errorbar(x, rates, err, fmt="none", ecolor="black", lw=0.8)
     ax.set_xticks(x, [c.value for c in cells], rotation=90, fontsize=7)
-    ax.set_ylim(0, 1.05)
-    ax.set_ylabel("failure rate (95% CI)", fontsize=8)
+    ax.set_ylim(-1.05, 1.05)
+    ax.axhline(0, color="black", lw=0.6)
+    ax.set_ylabel("failure rate - unedited (95% CI)", fontsize=8)
     ax.set_title(f"{slot}.{concept}: every value, most damaging first", fontsize=9)
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()

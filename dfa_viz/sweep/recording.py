@@ -1,8 +1,9 @@
 """The sweep's recording: the heatmap, a bar chart per concept, the ranking, and the worst few
 edited rollouts each beside its task's unedited one on the `step` timeline.
 
-    sweep/heatmap                     the failure rate of every single edit (static image)
-    sweep/concepts/<slot>.<concept>   each value's failure rate, 95% interval (static image)
+    sweep/heatmap                     every single edit's failure rate minus the control's
+                                      (the same tasks unedited) (static image)
+    sweep/concepts/<slot>.<concept>   each value's difference, 95% interval (static image)
     sweep/summary                     the ranking: concepts, worst edits, interactions (text)
     rollouts/worstK/unedited, .../edited
                                       the K-th worst edit's example task, frames and actions
@@ -71,7 +72,7 @@ def blueprint(world: World, names: list[tuple[str, str]], worst: list[SweepCell]
     ]
     bars = [rrb.Spatial2DView(origin=f"sweep/concepts/{s}.{c}", name=f"{s}.{c}") for s, c in names]
     top = rrb.Horizontal(
-        rrb.Spatial2DView(origin="sweep/heatmap", name="failure rate of every single edit"),
+        rrb.Spatial2DView(origin="sweep/heatmap", name="failure rate of every edit - unedited"),
         rrb.TextDocumentView(origin="sweep/summary", name="ranking"),
         column_shares=[3, 2],
     )
@@ -93,21 +94,29 @@ def summary_text(result: SweepResult, shown: int = 15) -> str:
     lines = [
         f"## sweep · {result.world} · {result.policy}",
         f"{len(result.cells)} single edits on {result.tasks} tasks ({result.distinct} distinct); "
-        f"the policy fails {result.base_failures} of them unedited.",
+        f"the policy fails {result.base_failures} of the distinct ones unedited. Trials are "
+        "distinct starting scenes; the difference is from the same tasks unedited.",
         "",
-        "| # | concept | fails | trials |",
-        "|---|---|---|---|",
+        "| # | concept | fails | unedited | difference (95% CI) | trials |",
+        "|---|---|---|---|---|---|",
     ]
     for i, c in enumerate(result.concepts):
         rate = "—" if not c.n else f"{c.failure_rate:.0%}"
-        lines.append(f"| {i + 1} | {c.slot}.{c.concept} | {rate} | {c.n} |")
-    lines += ["", "| # | edit | fails | 95% CI | deviation |", "|---|---|---|---|---|"]
+        control = "—" if not c.n else f"{c.control_rate:.0%}"
+        lines.append(
+            f"| {i + 1} | {c.slot}.{c.concept} | {rate} | {control} | {_diff(c)} | {c.n} |"
+        )
+    lines += [
+        "",
+        "| # | edit | fails | 95% CI | unedited | difference (95% CI) | deviation |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for i, c in enumerate(result.cells[:shown]):
         if c.n:
             lo, hi = c.failure_ci
             lines.append(
                 f"| {i + 1} | {c.label} | {c.failure_rate:.0%} | {lo:.0%}–{hi:.0%} | "
-                f"{c.deviation:.3f} |"
+                f"{c.control_rate:.0%} | {_diff(c)} | {c.deviation:.3f} |"
             )
     if result.interactions:
         lines += ["", "**Pairs that fail more often than both alone**", ""]
@@ -116,6 +125,13 @@ def summary_text(result: SweepResult, shown: int = 15) -> str:
             for p in result.interactions[:shown]
         ]
     return "\n".join(lines)
+
+
+def _diff(c) -> str:
+    if not c.n:
+        return "—"
+    lo, hi = c.difference_ci
+    return f"{100 * c.difference:+.0f} ({100 * lo:+.0f} to {100 * hi:+.0f})"
 
 
 def write_sweep_recording(

@@ -1,5 +1,5 @@
-"""The sweep as text: sweep.csv (every cell, concept and pair, ranked) and the rich table
-printed in the terminal."""
+"""The sweep as text: sweep.csv (every cell, concept and pair, ranked by the difference from
+the control arm) and the rich table printed in the terminal."""
 
 from __future__ import annotations
 
@@ -33,6 +33,12 @@ COLUMNS = (
     "example_edit",
     "example_pos",
     "worst",
+    "control_failures",
+    "control_rate",
+    "success_rate_control",
+    "difference",
+    "difference_low",
+    "difference_high",
 )
 SHOWN = 12  # cells in the terminal table
 
@@ -54,6 +60,12 @@ def _counts(kind: str, rank: int, name: str, c: SweepCell | ConceptDamage) -> di
         "failure_low": _num(c.failure_ci[0]),
         "failure_high": _num(c.failure_ci[1]),
         "deviation": _num(c.deviation),
+        "control_failures": str(c.control_failures),
+        "control_rate": _num(c.control_rate),
+        "success_rate_control": _num(1 - c.control_rate),
+        "difference": _num(c.difference),
+        "difference_low": _num(c.difference_ci[0]),
+        "difference_high": _num(c.difference_ci[1]),
     }
     return row
 
@@ -109,6 +121,18 @@ def _rate(n: int, k: int, ci: tuple[float, float]) -> str:
     return f"{k / n:.0%} ({100 * ci[0]:.0f}–{100 * ci[1]:.0f})"
 
 
+def _control(c: SweepCell | ConceptDamage) -> str:
+    return "—" if not c.n else f"{c.control_rate:.0%}"
+
+
+def _diff(c: SweepCell | ConceptDamage) -> str:
+    """The difference from the control, in points, with its 95% interval."""
+    if not c.n:
+        return "—"
+    lo, hi = c.difference_ci
+    return f"{100 * c.difference:+.0f} ({100 * lo:+.0f} to {100 * hi:+.0f})"
+
+
 def _dev(x: float, ci: tuple[float, float] | None = None) -> str:
     if x != x:
         return "—"
@@ -120,20 +144,25 @@ def tables(result: SweepResult, shown: int = SHOWN):
     from rich.table import Table
 
     concepts = Table(
-        title="concepts, most damaging first (looks of an absent object count as adding it)",
+        title="concepts, most damaging first (Δ: fails - control, the same tasks unedited; "
+        "an absent object's looks count as adding it)",
         title_justify="left",
     )
-    concepts.add_column("#", justify="right")
+    concepts.add_column("#", justify="right", no_wrap=True)
     concepts.add_column("slot.concept", no_wrap=True)
     concepts.add_column("fails % (95% CI)", no_wrap=True)
-    concepts.add_column("trials", justify="right")
-    concepts.add_column("deviation", justify="right")
+    concepts.add_column("control", justify="right", no_wrap=True)
+    concepts.add_column("Δ pts (95% CI)", no_wrap=True)
+    concepts.add_column("trials", justify="right", no_wrap=True)
+    concepts.add_column("deviation", justify="right", no_wrap=True)
     concepts.add_column("worst edit", no_wrap=True)
     for i, c in enumerate(result.concepts):
         concepts.add_row(
             str(i + 1),
             f"{c.slot}.{c.concept}",
-            _rate(c.n, c.failures, c.failure_ci) if c.n else "— (not in these tasks)",
+            _rate(c.n, c.failures, c.failure_ci) if c.n else "— (none here)",
+            _control(c),
+            _diff(c),
             str(c.n),
             _dev(c.deviation),
             "" if c.worst is None else label(c.worst),
@@ -152,6 +181,8 @@ def _cells(title: str, cells) -> object:
     table.add_column("#", justify="right")
     table.add_column("edit", no_wrap=True)
     table.add_column("fails % (95% CI)", no_wrap=True)
+    table.add_column("control", justify="right", no_wrap=True)
+    table.add_column("Δ pts (95% CI)", no_wrap=True)
     if cells and cells[0].is_pair:
         table.add_column("alone", justify="right", no_wrap=True)
     table.add_column("trials", justify="right", no_wrap=True)
@@ -162,6 +193,8 @@ def _cells(title: str, cells) -> object:
             str(i + 1),
             c.label,
             _rate(c.n, c.failures, c.failure_ci),
+            _control(c),
+            _diff(c),
             *alone,
             str(c.n),
             _dev(c.deviation),
@@ -175,6 +208,6 @@ def summary(result: SweepResult, wall_s: float) -> str:
         f"{result.world} · {result.policy}: {len(result.cells)} single edits"
         + (f" and {len(result.pairs)} pairs" if result.pairs else "")
         + f" on {result.tasks} tasks ({result.distinct} distinct; the policy fails "
-        f"{result.base_failures} unedited): {result.rollouts} rollouts, {result.frames} frames "
-        f"in {wall_s:.1f} s"
+        f"{result.base_failures} of those unedited): {result.rollouts} rollouts, "
+        f"{result.frames} frames in {wall_s:.1f} s"
     )

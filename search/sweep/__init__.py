@@ -4,9 +4,11 @@ tasks and judged by R': what breaks a policy before a user meets it.
 A *cell* is one (slot, concept, value): on a task where the slot is there, the edit that
 gives slot.concept that value; where the slot is absent, the edit that adds it with that
 value (presence cells add or remove it as it is). Per cell: the failure rate of the policy
-under R' (`world.success`) over the tasks the cell applies to, and its mean action deviation
-from the unedited rollout (L1 per step for continuous actions, the share of steps whose
-action differs for discrete ones), with 95% intervals (Wilson; Student t).
+under R' (`world.success`) over the distinct tasks the cell applies to beside the control arm
+(the same tasks unedited) and their difference, and its mean action deviation from the
+unedited rollout (L1 per step for continuous actions, the share of steps whose action differs
+for discrete ones), with 95% intervals (Wilson; Newcombe's paired; Student t). Cells are
+ranked by the difference from the control.
 
 Where the world has a scripted expert (a Benchmark), a failure counts only when R' can still
 be met after the edit: the expert's demonstration of the unedited task, replayed on the edited
@@ -59,12 +61,13 @@ SweepProgress = Callable[[str, int, int], None]
 
 
 def pair_keys(world: World, result: SweepResult, limit: int = PAIR_CELLS) -> tuple[PairKey, ...]:
-    """The pairs to try: every two cells of different concepts among the `limit` cells that
-    move the policy most (mean deviation) without always failing alone (a cell that always
-    fails cannot fail more often paired), in the concept space's order."""
+    """The pairs to try: every two cells of different concepts among the `limit` most
+    damaging cells (the largest difference from the control arm, then mean deviation) that do
+    not always fail alone (a cell that always fails cannot fail more often paired), in the
+    concept space's order."""
     order = {k: i for i, k in enumerate(cell_keys(world.space))}
     movers = [c for c in result.cells if c.n and c.failure_rate < 1.0]
-    movers.sort(key=lambda c: (-_or(c.deviation, -1.0), order[c.first]))
+    movers.sort(key=lambda c: (-c.difference, -_or(c.deviation, -1.0), order[c.first]))
     chosen = sorted((c.first for c in movers[:limit]), key=order.__getitem__)
     return tuple((a, b) for a, b in itertools.combinations(chosen, 2) if a[:2] != b[:2])
 

@@ -1,5 +1,11 @@
-"""The sweep's result: per cell and per concept, failure rates and deviations with their 95%
-intervals, ranked most damaging first; pairs that fail more often than both their cells."""
+"""The sweep's result: per cell and per concept, failure rates beside the control arm's (the
+same tasks unedited) and their difference, deviations, all with 95% intervals over distinct
+starting scenes, ranked by the difference; pairs that fail more often than both their cells.
+
+A trial is one distinct starting scene: a task given twice (the same scene and R') is rolled
+out once and counted once, since the worlds and policies roll out deterministically. Each
+trial is paired with its task's unedited rollout (the control); the difference's interval is
+Newcombe's for paired rates (search.stats.newcombe_paired)."""
 
 from __future__ import annotations
 
@@ -7,7 +13,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from search.stats import t_interval, wilson
+from search.stats import newcombe_paired, t_interval, wilson
 from search.sweep.cells import CellKey, PairKey, cell_keys, key_edit, label
 from search.sweep.units import Outcome, Plan, UnitResult
 from sim.core import PRESENCE, Edit, World
@@ -33,12 +39,16 @@ class SweepCell:
 
     key: CellKey | PairKey
     applies: int
-    """Trials on which the edit changes something: one per task, or, for an edit that adds an
-    object, one per place it is tried at on each task."""
+    """Trials on which the edit changes something: one per distinct task, or, for an edit
+    that adds an object, one per place it is tried at on each distinct task."""
     n: int
     """Of those, the trials counted: where R' can still be met after the edit."""
     failures: int
     failure_ci: tuple[float, float]
+    control_failures: int
+    """Of the counted trials, those whose task the policy fails unedited (the control arm)."""
+    difference_ci: tuple[float, float]
+    """95% interval of failure_rate - control_rate (paired: Newcombe)."""
     deviation: float
     deviation_ci: tuple[float, float]
     expert_deviation: float
@@ -55,6 +65,16 @@ class SweepCell:
     @property
     def failure_rate(self) -> float:
         return self.failures / self.n if self.n else math.nan
+
+    @property
+    def control_rate(self) -> float:
+        """The control arm's failure rate: the same trials' tasks unedited."""
+        return self.control_failures / self.n if self.n else math.nan
+
+    @property
+    def difference(self) -> float:
+        """How much more often the policy fails with the edit than without, on the same tasks."""
+        return self.failure_rate - self.control_rate
 
     @property
     def excess(self) -> float:
@@ -101,17 +121,27 @@ class ConceptDamage:
     deviation: float
     worst: CellKey | None
     """Its most damaging value's cell."""
+    control_failures: int = 0
+    difference_ci: tuple[float, float] = (math.nan, math.nan)
 
     @property
     def failure_rate(self) -> float:
         return self.failures / self.n if self.n else math.nan
 
+    @property
+    def control_rate(self) -> float:
+        return self.control_failures / self.n if self.n else math.nan
+
+    @property
+    def difference(self) -> float:
+        return self.failure_rate - self.control_rate
+
 
 @dataclass(frozen=True)
 class SweepResult:
-    """A whole sweep: every single cell ranked most damaging first (failure rate, then
-    deviation), the concepts ranked the same way, and with pairs the interactions: pairs
-    that fail more often than both of their cells alone."""
+    """A whole sweep: every single cell ranked most damaging first (the difference from the
+    control arm, then the failure rate, then deviation), the concepts ranked the same way, and
+    with pairs the interactions: pairs that fail more often than both of their cells alone."""
 
     world: str
     policy: str
@@ -119,7 +149,7 @@ class SweepResult:
     distinct: int
     """Distinct tasks among the seeds' (the same scene is rolled out once)."""
     base_failures: int
-    """Tasks the policy fails unedited."""
+    """Distinct tasks the policy fails unedited."""
     expert: bool
     cells: tuple[SweepCell, ...]
     concepts: tuple[ConceptDamage, ...]
@@ -153,13 +183,12 @@ class SweepResult:
 
 
 def _rank_key(c: SweepCell | ConceptDamage) -> tuple:
-    rate = c.failure_rate
-    dev = c.deviation
-    return (
-        c.n == 0,
-        -(rate if rate == rate else -1.0),
-        -(dev if dev == dev else -1.0),
-    )
+    """Counted first; then the larger difference from the control, failure rate, deviation."""
+    return (c.n == 0, -_or(c.difference, -2.0), -_or(c.failure_rate, -1.0), -_or(c.deviation, -1.0))
+
+
+def _or(x: float, default: float) -> float:
+    return default if x != x else x
 
 
 def summarise(
@@ -178,7 +207,7 @@ def summarise(
     cells = [_cell(p, key, single, base) for key in cell_keys(world.space)]
     cells = [c for c in cells if c.applies]
     concepts = [
-        _concept(p, s.name, name, cells, single)
+        _concept(p, s.name, name, cells, single, base)
         for s in world.space.slots
         for name in _concept_names(s)
     ]
@@ -196,7 +225,7 @@ def summarise(
         policy,
         tuple(t.seed for t in p.tasks),
         len(p.distinct),
-        sum(base[d] for d in p.of),
+        sum(base.values()),
         expert,
         tuple(sorted(cells, key=_rank_key)),
         tuple(sorted(concepts, key=_rank_key)),
@@ -236,15 +265,17 @@ def _cell(
     base: dict[int, bool],
     single: Index | None = None,
 ) -> SweepCell:
-    """One cell over the given tasks (a distinct task counts as often as it was given), each
-    place a trial. A pair counts where it and both its cells count (at place 0)."""
-    applies = n = failures = 0
+    """One cell over the distinct tasks (a task given twice counts once), each place a trial,
+    paired with the task unedited. A pair counts where it and both its cells count (at place
+    0)."""
+    applies = 0
     fails = [0, 0]
+    table = _Paired()
     devs: list[float] = []
     edevs: list[float] = []
     example: Example | None = None
     fallback: Example | None = None
-    for i, d in enumerate(p.of):
+    for d, task in enumerate(p.distinct):
         for o in outcomes.get((d, key), ()):
             applies += 1
             if math.isfinite(o.deviation):
@@ -254,25 +285,27 @@ def _cell(
             parts = () if single is None else tuple(_first(single, d, k) for k in key)
             if not (_counted(o) and all(_counted(x) for x in parts)):
                 continue
-            n += 1
-            failures += o.failed
+            table.add(o.failed, base[d])
             for j, x in enumerate(parts):
                 fails[j] += x.failed  # type: ignore[union-attr]
             if o.failed and example is None:
-                edit = key_edit(p.tasks[i].scene, key)
+                edit = key_edit(task.scene, key)
                 assert edit is not None
-                ex = Example(p.tasks[i].seed, edit, base[d], o.pos)
+                ex = Example(task.seed, edit, base[d], o.pos)
                 if not base[d]:
                     example = ex
                 elif fallback is None:
                     fallback = ex
     mean, low, high = t_interval(devs)
+    n = table.n
     return SweepCell(
         key,
         applies,
         n,
-        failures,
-        wilson(failures, n),
+        table.failures,
+        wilson(table.failures, n),
+        table.control_failures,
+        table.interval(),
         mean,
         (low, high),
         math.fsum(edevs) / len(edevs) if edevs else math.nan,
@@ -281,28 +314,59 @@ def _cell(
     )
 
 
+class _Paired:
+    """Trials tallied as a paired 2x2 table: (edited failed, control failed)."""
+
+    def __init__(self) -> None:
+        self.counts = [0, 0, 0, 0]  # both, edited only, control only, neither
+
+    def add(self, edited: bool, control: bool) -> None:
+        self.counts[(not edited) * 2 + (not control)] += 1
+
+    @property
+    def n(self) -> int:
+        return sum(self.counts)
+
+    @property
+    def failures(self) -> int:
+        return self.counts[0] + self.counts[1]
+
+    @property
+    def control_failures(self) -> int:
+        return self.counts[0] + self.counts[2]
+
+    def interval(self) -> tuple[float, float]:
+        return newcombe_paired(*self.counts)
+
+
 def _first(index: Index, task: int, key) -> Outcome | None:
     got = index.get((task, key))
     return got[0] if got else None
 
 
 def _concept(
-    p: Plan, slot: str, concept: str, cells: Sequence[SweepCell], single: Index
+    p: Plan,
+    slot: str,
+    concept: str,
+    cells: Sequence[SweepCell],
+    single: Index,
+    base: dict[int, bool],
 ) -> ConceptDamage:
-    """The trials of every cell of slot.concept on the tasks where the object is there (of
-    its presence: the presence cells, and the look cells where the object is absent)."""
-    n = failures = 0
+    """The trials of every cell of slot.concept on the distinct tasks where the object is
+    there (of its presence: the presence cells, and the look cells where the object is
+    absent), each paired with its task unedited."""
+    table = _Paired()
     devs: list[float] = []
     group = []
     for c in cells:
         if c.slot != slot or c.is_pair:
             continue
         mine = False
-        for d in p.of:
+        for d, task in enumerate(p.distinct):
             outs = single.get((d, c.key), ())
             if not outs:
                 continue
-            obj = p.distinct[d].scene.obj(slot)
+            obj = task.scene.obj(slot)
             adds = c.concept != PRESENCE and not obj.present
             if adds and c.value == obj.value(c.concept):
                 continue  # adding it as it is: the presence cell's own trials
@@ -315,17 +379,18 @@ def _concept(
             for o in outs:
                 devs += [o.deviation] if math.isfinite(o.deviation) else []
                 if _counted(o):
-                    n += 1
-                    failures += o.failed
+                    table.add(o.failed, base[d])
         if mine:
             group.append(c)
     ranked = sorted(group, key=_rank_key)
     return ConceptDamage(
         slot,
         concept,
-        n,
-        failures,
-        wilson(failures, n),
+        table.n,
+        table.failures,
+        wilson(table.failures, table.n),
         math.fsum(devs) / len(devs) if devs else math.nan,
         ranked[0].key if ranked and ranked[0].n else None,  # type: ignore[arg-type]
+        table.control_failures,
+        table.interval(),
     )

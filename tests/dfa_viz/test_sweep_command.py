@@ -51,10 +51,16 @@ def test_the_command_writes_the_table_the_heatmap_and_the_recording(tmp_path):
     first = rows[0]
     assert (first["slot"], first["concept"]) == ("goal", "colour")
     singles = [r for r in rows if r["kind"] == "single"]
-    rates = [float(r["failure_rate"]) for r in singles if r["failure_rate"]]
-    assert rates == sorted(rates, reverse=True)  # most damaging first
+    diffs = [float(r["difference"]) for r in singles if r["difference"]]
+    assert diffs == sorted(diffs, reverse=True)  # most damaging first: above the control arm
     counted = [r for r in singles if r["counted"] != "0"]
     assert all(float(r["failure_low"]) <= float(r["failure_rate"]) for r in counted)
+    assert all(int(r["counted"]) <= 9 for r in counted)  # 9 distinct layouts, each once
+    for r in counted:
+        control = float(r["control_rate"])
+        assert float(r["success_rate_control"]) == pytest.approx(1 - control)
+        assert float(r["difference"]) == pytest.approx(float(r["failure_rate"]) - control)
+        assert float(r["difference_low"]) <= float(r["difference"]) <= float(r["difference_high"])
     with Image.open(out / "heatmap.png") as img:
         png = np.asarray(img)
     assert png.ndim == 3 and png.shape[0] > 200
