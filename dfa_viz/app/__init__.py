@@ -8,9 +8,10 @@ Modules: args (ServeArgs, DemoArgs: the options of `dfa serve` and `dfa demo`), 
 JSON-lines session folder), events (the session's typed events), replay (an event applied to
 the run record: the loop's step), runstate (the run, its log and recording), state (the user's
 actions, each a loop step and an event), hub (ordered input, subscribers), offers (what the
-page accepts), policies, recorder, jobs (one long job at a time), demonstrate (per-world input), episodes (a LeRobotDataset's
-episodes offered as demonstrations, `dfa serve --demos`), frames and plots (what is drawn),
-page/compare/feedback/canvas/tables/picker (one tab's GUI), server.
+page accepts), policies, recorder, jobs (one long job at a time), demonstrate (per-world
+input), episodes (a LeRobotDataset's episodes offered as demonstrations, `dfa serve --demos`),
+frames and plots (what is drawn), page/task_section/compare/feedback/canvas/tables/picker (one
+tab's GUI), server.
 """
 
 from __future__ import annotations

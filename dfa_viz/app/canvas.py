@@ -26,6 +26,7 @@ class Canvas:
         self.plane: viser.ImageHandle | None = None
         self._shown: tuple | None = None
         self._meshes: tuple | None = None
+        self._frame: tuple | None = None  # (rollout, step) the plane shows, for flat worlds
         self._mesh_nodes: dict[str, object] = {}
         self._oblique_for: tuple | None = None
         self.covered = False  # the Sweep tab's heatmap lies over the image: clicks are its own
@@ -57,6 +58,7 @@ class Canvas:
                 return
             new_task = self._shown is None or key[0] != self._shown[0]
             self._shown = key
+            self._frame = None
             if new_task or view.demo_kind == "keys":
                 self.pin_camera()
             if self._meshes_shown(view) and key[1] != (self._oblique_for or (None, None))[1]:
@@ -99,9 +101,12 @@ class Canvas:
     # -- 3D scenes (tabletop) -----------------------------------------------------------------
     def show_scenes(self, view: View, step: int) -> None:
         """Tabletop: the failed rollout's objects as meshes over the image plane at the slider's
-        step, with the counterfactual's as a translucent ghost (after the diagnosis)."""
+        step, with the counterfactual's as a translucent ghost (after the diagnosis). A world
+        without meshes: the failed rollout's frame at the slider's step on the plane."""
         run = view.record
         show = self._meshes_shown(view)
+        if not show:
+            self._show_frame(view, step)
         cf = run.diagnosis.counterfactual if show and run.diagnosis else None
         key = (id(run.rollout), id(cf), step) if show else None
         with self._lock:
@@ -114,6 +119,21 @@ class Canvas:
             for gone in set(self._mesh_nodes) - set(nodes):
                 self._mesh_nodes[gone].remove()
             self._mesh_nodes = nodes
+
+    def _show_frame(self, view: View, step: int) -> None:
+        run = view.record
+        if run is None or view.stage == "demonstrate":
+            return  # the demonstration canvas is the plane's
+        from dfa_viz.app import frames
+
+        obs = run.rollout.observations  # (T + 1, H, W, 3)
+        t = min(max(step, 0), len(obs) - 1)
+        with self._lock:
+            if self.plane is None or self._frame == (id(run.rollout), t):
+                return
+            self._frame = (id(run.rollout), t)
+            image = frames.upscale(obs[t], frames.scale_for(obs.shape[1:], frames.CANVAS_PX))
+            self.plane.image = np.ascontiguousarray(np.flipud(image))
 
     @staticmethod
     def _meshes_shown(view: View) -> bool:

@@ -122,8 +122,10 @@ class ComparePanel:
             "demonstrate": "after your demonstration",
             "diagnose": "searching…",
         }.get(view.stage, "no counterfactual found")
+        # the policy's own rollout is "failed" once the user said so
+        policy = "failed" if run.failed else "the policy"
         shown = [
-            ("failed", run.rollout, ""),
+            (policy, run.rollout, ""),
             ("demonstration", run.demo, "no demonstration yet"),
             ("counterfactual", counterfactual, cf_missing),
         ]
@@ -134,7 +136,7 @@ class ComparePanel:
         for name, traj, missing in shown:
             title = name + ("" if traj is None else (" ✓" if traj.success else " ✗"))
             frame = frames.frame_at(traj, step)
-            if name == "failed" and layer is not None:
+            if name == policy and layer is not None:
                 title += f" · {METHOD_NAMES[layer.method]}"
                 if frame is not None and step < len(layer.maps):
                     frame = blend(frame, layer.maps[step])

@@ -16,14 +16,14 @@ import viser
 from dfa_viz.app import plots
 from dfa_viz.app.canvas import Canvas
 from dfa_viz.app.compare import ComparePanel
-from dfa_viz.app.controls import SEED, Checked, hidden, one_of
+from dfa_viz.app.controls import Checked, hidden, one_of
 from dfa_viz.app.feedback import FeedbackSection
 from dfa_viz.app.picker import EpisodePicker
 from dfa_viz.app.state import LoopState
 from dfa_viz.app.sweep import SweepTab
 from dfa_viz.app.tables import diagnosis_text, edit_table, results_text, status_text
+from dfa_viz.app.task_section import TaskSection
 from dfa_viz.app.view import View
-from sim import get_world
 from sim.core import UserError
 
 PANEL_PX = 360  # the control panel's width; the compare panel takes the right side
@@ -39,44 +39,28 @@ class Page:
         self._commands: list = []
         self._keys_for: int | None = None
         self._ties: tuple[str, ...] = ()  # the minimal edits offered, as the dropdown names them
-        self._task_shown: int | None = None
         gui = client.gui
         client.gui.main_panel.dock_left()
         client.gui.main_panel.set_width(PANEL_PX)
         self.header = gui.add_markdown("### DFA — diagnose, feedback, adapt")
-        self.status = gui.add_markdown("")
-        self.error = gui.add_markdown("", visible=False)
-        # what to do next, and the running job, stay at the top whatever is scrolled below: a
-        # button per next step, one shown at a time (a press names no label, so a press of a
-        # step that is over, arriving late, finds its own button hidden, never the next one's)
-        self.primary = {
-            label: gui.add_button(label, icon=viser.Icon.ARROW_RIGHT, visible=False)
-            for label in (USE_DEMO, ASK_EXPERT, FINETUNE, NEXT_TASK)
-        }
-        self.job_bar = gui.add_progress_bar(0, animated=True, visible=False)
+        # what to do next, why it waits and the running job: a panel of their own above the
+        # control panel, in view at every window size whatever is scrolled below; a button per
+        # next step, one shown at a time (a press names no label, so a press of a step that is
+        # over, arriving late, finds its own button hidden, never the next one's)
+        self.next_panel = gui.add_panel()
+        with self.next_panel.add_tab("Next step", icon=viser.Icon.ARROW_RIGHT):
+            self.status = gui.add_markdown("")
+            self.error = gui.add_markdown("", visible=False)
+            self.primary = {
+                label: gui.add_button(label, icon=viser.Icon.ARROW_RIGHT, visible=False)
+                for label in (USE_DEMO, ASK_EXPERT, FINETUNE, NEXT_TASK)
+            }
+            self.reason = gui.add_markdown("", visible=False)
+            self.job_bar = gui.add_progress_bar(0, animated=True, visible=False)
+        self.next_panel.dock_above(client.gui.main_panel)
         self._stage_shown: str | None = None
 
-        with gui.add_folder("1 · Task"):
-            world = gui.add_dropdown("world", state.worlds, initial_value=state.world_name)
-            self.world = Checked(
-                world,
-                one_of(lambda: state.worlds),
-                client,
-                # the shifts on offer are the chosen world's own
-                on_change=lambda _: self._offer_shifts(self.world.value),
-            )
-            self._shifts = shifts_of(state.world_name)  # the shifts offered now
-            shift = gui.add_dropdown(
-                "shift", self._shifts, initial_value=default_shift(self._shifts)
-            )
-            self.shift = Checked(shift, one_of(lambda: self._shifts), client)
-            self.seed = Checked(gui.add_number("seed", 0, min=0, step=1), SEED, client)
-            # disabled until their callbacks are attached (on_change enables them): a click
-            # on a loaded machine while the page is still being built would be dropped
-            self.load = gui.add_button("Load task", icon=viser.Icon.PLAYER_PLAY, disabled=True)
-            self.next = gui.add_button(
-                "Next task", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True
-            )
+        self.task = TaskSection(client, state, self._guard)
 
         self.judge_folder = gui.add_folder("2 · Judge", visible=False)
         with self.judge_folder:
@@ -131,7 +115,7 @@ class Page:
             state,
             self.compare.panel,
             self.canvas,
-            world=lambda: self.world.value,
+            world=lambda: self.task.world.value,
             warn=self.warn,
         )
         self._wire()
@@ -159,10 +143,6 @@ class Page:
 
     def _wire(self) -> None:
         s = self.state
-        self.load.on_click(
-            self._guard(lambda _: s.pick(self.world.value, self.shift.value, self.seed.value))
-        )
-        self.next.on_click(self._guard(lambda _: s.next_task()))
         self.failed.on_click(self._guard(lambda _: s.judge(True)))
         self.succeeded.on_click(self._guard(lambda _: s.judge(False)))
         self.use_demo.on_click(self._guard(lambda _: s.demonstrate(expert=False)))
@@ -179,13 +159,6 @@ class Page:
             return  # set by the page, or the placeholder
         index = self._ties.index(self.tie.value)
         self._guard(lambda _: self.state.select_tie(index))(event)
-
-    def _offer_shifts(self, world: str) -> None:
-        shifts = shifts_of(world)
-        with self._lock:
-            if self._shifts != shifts:
-                self._shifts = shifts  # first: the dropdown may take its first option at once
-                self.shift.handle.options = shifts
 
     def _download(self, _event) -> None:
         path = self.state.write_recording()
@@ -208,7 +181,7 @@ class Page:
                 self._draw_keys(view)
                 self.canvas.refresh(view, force="all" in what)
                 self.compare.refresh(view)
-            if what & {"all", "stage", "losses", "job"}:
+            if what & {"all", "stage", "marks", "losses", "job"}:
                 self._draw_adapt(view)
             self.sweep.refresh(busy=view.job is not None)
         self.client.flush()
@@ -216,19 +189,10 @@ class Page:
     def _draw_controls(self, view: View) -> None:
         busy = view.job is not None
         run, stage = view.record, view.stage
-        if run is not None and id(run.task) != self._task_shown:
-            self._task_shown = id(run.task)  # show what is loaded (maybe by another tab)
-            self.world.set(run.world)
-            self._offer_shifts(run.world)
-            if run.shift in self._shifts:  # not a failure the sweep found
-                self.shift.set(run.shift)
-            self.seed.set(run.seed)
+        self.task.draw(view)
         self.status.content = status_text(view)
         self.error.content = f"**Error:** {view.error}" if view.error else ""
         self.error.visible = bool(view.error)
-        pickable = get_world(self.world.value).benchmark  # a world with test tasks to load
-        for b in (self.load, self.next):
-            b.disabled = busy or not pickable
         job = view.job
         self.job_bar.visible = job is not None
         if job is not None:
@@ -268,32 +232,39 @@ class Page:
             else f"Session: `{view.session}`"
         )
 
-    def _next_action(self, view: View) -> tuple[str, bool] | None:
-        """The active stage's primary action (label, enabled), or None where there is none."""
-        run, busy = view.record, view.job is not None
+    def _next_action(self, view: View) -> tuple[str, str] | None:
+        """The active stage's primary action (label, why it waits: "" when it may be pressed),
+        or None where there is none."""
+        run = view.record
         if run is None or view.stage == "solved":
             return None
+        busy = "wait until the job above ends" if view.job is not None else ""
         if view.stage == "demonstrate":
             if view.demo_kind in ("clicks", "keys") and view.demo_given:
-                return USE_DEMO, not busy and view.demo_ready
-            return ASK_EXPERT, not busy
+                return USE_DEMO, busy or (
+                    "" if view.demo_ready else view.demo_problem or "not done"
+                )
+            return ASK_EXPERT, busy
         if view.stage == "feedback":
-            return FINETUNE, not busy and not run.unmarked()
+            unmarked = run.unmarked()
+            return FINETUNE, busy or (f"mark {', '.join(unmarked)} first" if unmarked else "")
         if view.stage == "adapted":
-            return NEXT_TASK, not busy
+            return NEXT_TASK, busy
         return None
 
     def _draw_primary(self, view: View) -> None:
-        label, enabled = self._next_action(view) or ("", False)
+        label, why = self._next_action(view) or ("", "")
         for name, button in self.primary.items():
             button.visible = name == label
-            button.disabled = not (name == label and enabled)
+            button.disabled = not (name == label and not why)
+        self.reason.content = f"*{why[0].upper()}{why[1:]}.*" if why else ""
+        self.reason.visible = bool(why)
 
     def _on_primary(self, label: str):
         action = self._next_action(self.state.snapshot())
         if action is None or action[0] != label:
             raise UserError(f"{label}: that step is over")  # pressed as the page moved on
-        if not action[1]:
+        if action[1]:
             return False if self.state.busy else None
         s = self.state
         return {
@@ -372,12 +343,3 @@ class Page:
     def close(self) -> None:
         self.unsubscribe()
         self.compare.close()
-
-
-def shifts_of(world: str) -> tuple[str, ...]:
-    """The shifts a world's test tasks come in (a world without them: one placeholder)."""
-    return get_world(world).shifts or ("none: load a demonstration with dfa run --demo",)
-
-
-def default_shift(shifts: tuple[str, ...]) -> str:
-    return "distractor_ti" if "distractor_ti" in shifts else shifts[0]

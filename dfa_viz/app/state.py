@@ -93,6 +93,13 @@ class LoopState(RunState):
 
         return self._start("task", job, f"finding a {shift} task for seed {seed}")
 
+    def offer_world(self, name: str) -> None:
+        """List a world the user typed ("minigrid:<EnvId>", ...) in every tab's picker."""
+        self.offers.typed(name)  # checked and built outside the lock
+        with self._lock:  # then added to what another tab may have added meanwhile
+            self.offers = self.offers.typed(name)
+        self._notify({"worlds"})
+
     def next_task(self) -> bool:
         with self._lock:
             rec, world = self.record, self.world

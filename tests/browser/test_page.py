@@ -3,14 +3,32 @@ the plain no-counterfactual message."""
 
 from __future__ import annotations
 
+import io
 import json
 
+import numpy as np
 import pytest
+from PIL import Image
 from playwright.sync_api import expect
 
 pytestmark = pytest.mark.browser
 
 GOAL_RED = (230, 40, 40)  # sim.nav2d.render.COLOURS["red"]
+
+
+def _agent_in_3d_view(page) -> np.ndarray:
+    """Page (x, y) of the centre of the white agent on the task image's black floor in the 3D
+    view (its background is white too: only the floor's rows and columns are searched)."""
+    canvases = page.locator("canvas")
+    boxes = [canvases.nth(i).bounding_box() for i in range(canvases.count())]
+    i = int(np.argmax([b["width"] * b["height"] if b else 0 for b in boxes]))
+    img = np.asarray(Image.open(io.BytesIO(canvases.nth(i).screenshot())).convert("RGB"))
+    img = img.astype(int)
+    black = img.sum(axis=-1) < 30
+    ys, xs = np.flatnonzero(black.sum(axis=1)), np.flatnonzero(black.sum(axis=0))
+    floor = img[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    wy, wx = np.nonzero(floor.min(axis=-1) > 220)
+    return np.array([xs.min() + wx.mean(), ys.min() + wy.mean()])
 
 
 def _events(app) -> list[dict]:
@@ -40,11 +58,16 @@ def test_nav2d_loop_by_clicks(serve_app, ui, shots):
     expect(page.get_by_text("distractor.presence: present → absent")).to_be_visible()
     frames = ui.frames(page)
     before = frames.screenshot()
+    agent_at_start = _agent_in_3d_view(page)
     slider = page.get_by_role("slider")
     track = slider.locator("xpath=..").bounding_box()  # the thumb sits on the track
     page.mouse.click(track["x"] + 0.4 * track["width"], track["y"] + track["height"] / 2)
     expect(slider).to_have_attribute("aria-valuenow", "8")
     ui.wait_until(lambda: frames.screenshot() != before, what="the frames to follow the slider")
+    ui.wait_until(  # the 3D view shows the failed rollout at that step too
+        lambda: np.abs(_agent_in_3d_view(page) - agent_at_start).max() > 5,
+        what="the 3D view to follow the slider",
+    )
     page.screenshot(path=shots / "2-diagnosis.png")
     page.get_by_role("button", name="step ▶").click()
     expect(slider).to_have_attribute("aria-valuenow", "9")

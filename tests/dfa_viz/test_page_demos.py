@@ -76,7 +76,7 @@ def _object_ti(app, tab: PageWire) -> None:
     tab.wait_enabled("Load task", CEILING_S)
     tab.update(tab.one("shift", "Dropdown"), value="object_ti")
     tab.wait(
-        lambda: any(p.shift.value == "object_ti" for p in app.pages.values()),
+        lambda: any(p.task.shift.value == "object_ti" for p in app.pages.values()),
         "the shift taken",
         CEILING_S,
     )

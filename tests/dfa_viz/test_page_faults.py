@@ -341,7 +341,7 @@ def test_forged_control_values_are_refused_in_one_line_and_never_acted_on(served
         # the tab's controls work on as before: an offered value is taken without a word
         tab.update(shift, value="object_ti")
         tab.wait(
-            lambda: any(p.shift.value == "object_ti" for p in app.pages.values()),
+            lambda: any(p.task.shift.value == "object_ti" for p in app.pages.values()),
             "the offered shift taken",
             CEILING_S,
         )
