@@ -13,8 +13,9 @@ cli.py         `experiment_q2`, the `dfa experiment q2` subcommand; `experiment_
                `dfa experiment explain`
 
 The explanation benchmark (`dfa experiment explain`): explain.py (one task: every explainer's
-ranking of the concepts against the planted cause; the plan and the run), explain_results.py
-(the resumable folder, Wilson intervals, the Markdown table), explain_figures.py (the bars).
+ranking of the concepts against the planted cause), explain_run.py (the plan and the run),
+explain_results.py (the resumable folder, Wilson intervals, the Markdown table),
+explain_figures.py (the bars).
 
 Importing this package imports nothing heavy; torch comes with runner.py.
 """

@@ -40,7 +40,8 @@ def experiment_q2(args: Q2Args) -> None:
 
 def experiment_explain(args: ExplainArgs) -> None:
     """Plan, run (skipping finished tasks) and report the explanation benchmark."""
-    from dfa_viz.experiment.explain import ExplainPlan, ExplainSettings, run_explain
+    from dfa_viz.experiment.explain import ExplainSettings
+    from dfa_viz.experiment.explain_run import ExplainPlan, run_explain
 
     summary = run_explain(
         ExplainPlan(tuple(args.worlds), tuple(args.shifts), args.tasks),

@@ -18,11 +18,11 @@ from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
+from dfa_viz.experiment.args import EXPLAIN_SHIFTS
 from dfa_viz.experiment.conditions import ACCURACY
 from dfa_viz.experiment.explain import (
     COLUMNS,
     EXPLAINERS,
-    SHIFTS,
     TIMING_COLUMNS,
     ExplainSettings,
     explainer_names,
@@ -106,7 +106,7 @@ def panel_order(rows: Sequence[Mapping[str, str]]) -> tuple[list[str], list[tupl
     explainers = [e for e in EXPLAINERS if any(r["explainer"] == e for r in rows)]
     pairs = sorted(
         {(r["world"], r["shift"]) for r in rows},
-        key=lambda p: (_rank(p[0], PAPER_WORLDS), _rank(p[1], SHIFTS)),
+        key=lambda p: (_rank(p[0], PAPER_WORLDS), _rank(p[1], EXPLAIN_SHIFTS)),
     )
     return explainers, pairs
 

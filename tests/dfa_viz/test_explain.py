@@ -8,15 +8,14 @@ from dfa_viz.cli import main
 from dfa_viz.experiment.explain import (
     COLUMNS,
     EXPLAINERS,
-    ExplainPlan,
     ExplainSettings,
     TaskSpec,
     explain_task,
     explainer_names,
-    run_explain,
 )
 from dfa_viz.experiment.explain_figures import write_plot
 from dfa_viz.experiment.explain_results import cell, explain_folder, markdown_table
+from dfa_viz.experiment.explain_run import ExplainPlan, run_explain
 from sim.core import UserError
 
 PLAN = ExplainPlan(worlds=("nav2d",), shifts=("object_ti", "distractor_ti"), tasks=2)
