@@ -92,7 +92,8 @@ class Answer:
     none: bool
     """"The cause is not among these concepts"."""
     matters: bool
-    """Should it matter for what the participant asked for (True: yes, it matters)."""
+    """Should it matter for what the participant asked for (True: yes, it matters; False with
+    `none`, where the page does not ask)."""
     duration_s: float
     """Time on the question: from the question shown to the answer given, in seconds."""
     via: str = "direct"

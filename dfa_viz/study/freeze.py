@@ -44,7 +44,8 @@ INTRO = "intro"
 
 def choices(world: World, task: Task) -> list[dict]:
     """What a participant may name as the cause: every concept the test scene shows, at the
-    value it shows ({"key": "goal.colour", "label": "the goal's colour (red)"})."""
+    value it shows ({"key": "goal.colour", "label": "the goal's colour (red)"}; a presence:
+    "the distractor in the scene", "that the scene has no lava")."""
     from sim.core.visible import visible_concepts
 
     out = []
@@ -52,7 +53,7 @@ def choices(world: World, task: Task) -> list[dict]:
         kind, concept = uc.name.split(".", 1)
         present = [s for s, c in uc.members if task.scene.obj(s).present]
         if concept == PRESENCE:
-            label = f"a {kind} is there" if present else f"no {kind} is there"
+            label = f"the {kind} in the scene" if present else f"that the scene has no {kind}"
         else:
             values = dict.fromkeys(task.scene.obj(s).value(concept) for s in present)
             label = f"the {kind}'s {concept} ({', '.join(values)})"

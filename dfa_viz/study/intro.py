@@ -3,6 +3,8 @@ kind, and a counterfactual. Each a uint8 (H, W, 3) image, made once by `dfa stud
 the world's words:
 
     description         a 0-d str array: what the robot is and should do (`world_text`)
+    looks               a 0-d str array: the looks a thing can have ("colour or shape";
+                        DoorKey: "colour"), said by the introduction of an object change
 
     concepts            a row per concept: the training scene with each of its values
                         (at most VALUES_SHOWN of them; the tabletop has 29 shapes, 81 colours)
@@ -85,6 +87,15 @@ def concept_rows(world: World, scene, extra) -> np.ndarray:
     return stack(rows, gap_px=14)
 
 
+def looks_text(world: World) -> str:
+    """The looks the world's things can have, in words: "colour or shape" (nav2d), "colour"
+    (DoorKey): every concept but presence, each once, in the order the space names them."""
+    names = dict.fromkeys(
+        c.name for slot in world.space.slots for c in slot.concepts if c.name != PRESENCE
+    )
+    return " or ".join(names)
+
+
 def world_text(world: World, seed: int = EXAMPLE_SEED) -> str:
     """What the familiarisation says of `world`: its description, else what a training task
     asks for."""
@@ -104,6 +115,7 @@ def intro_pictures(world: World, policy, protocol: Protocol) -> dict[str, np.nda
     extra = world.test_task("distractor_ti", seed).scene
     out = {
         "description": np.array(world_text(world, seed)),
+        "looks": np.array(looks_text(world)),
         "concepts": concept_rows(world, train.scene, extra),
     }
     shape = world.obs_shape

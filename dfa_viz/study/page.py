@@ -4,8 +4,11 @@ Each question shows what the robot did on a frozen task (and, by the question's 
 what it does once the counterfactual's change is made, side by side; the saliency heat over
 its frames; or nothing more), then asks what made it fail (the concepts the scene shows at
 their values, or "the cause is not among these") and whether that should matter for what
-the participant asked for. Keys: 1-9 tick a concept, 0 the "not among these" answer, Y / N
-the second question, Enter goes on. An answer is on disk (answers.Store) before the next
+the participant asked for (not asked after "not among these": no cause named, nothing said
+to matter). The question fills the main panel, docked left (so viser's developer panel stays
+folded away); the answer a panel docked right, its Submit button in view at any height.
+Keys: 1-9 tick a concept, 0 the "not among these" answer, Y / N the second question, Enter
+goes on. An answer is on disk (answers.Store) before the next
 question is drawn; nothing the page is sent says what the right answer is (the page never
 reads truth.json).
 """
@@ -29,13 +32,14 @@ from dfa_viz.study.intro import COLOURS
 from dfa_viz.study.protocol import Protocol, Question
 from sim.core import UserError
 
-PANEL_PX = 980  # the study's panel, docked left over the (unused) 3D view
+PANEL_PX = 800  # the question's panel, docked left over the (unused) 3D view
+ANSWER_PX = 440  # the answer's panel, docked right: the Submit button in view at 1280x720
 ASK_MATTERS = "Should that matter for what you asked for?"
 MATTERS = ("(press Y or N)", "Yes, it matters", "No, it does not matter")
 NONE_LABEL = "0 · The cause is not among these"
 KIND_TEXT = {
-    "object": "**One thing looks different** from the scenes the robot learnt on: the colour "
-    "or the shape of something it knows.",
+    "object": "**One thing looks different** from the scenes the robot learnt on: the {looks} "
+    "of something it knows.",
     "distractor": "**Something new is in the scene**, something that was not there when the "
     "robot learnt.",
     "other": "**Something else changed** that is none of the looks listed, for instance where "
@@ -58,10 +62,11 @@ class StudyPage:
         self._lock = threading.RLock()
         self._handles: list = []
         self._holder = None
-        self.panel = client.gui.add_panel()
-        self.tab = self.panel.add_tab("Study")
-        self.panel.dock_left()
-        self.panel.set_width(PANEL_PX)
+        self._answer = None  # the answer's panel, while a question is shown
+        # the study's GUI is the main panel's own: viser then folds its developer panel (the
+        # server's address, Save Canvas, Dev Settings, the scene tree) away behind an icon
+        client.gui.main_panel.dock_left()
+        client.gui.main_panel.set_width(PANEL_PX)
         self.welcome()
 
     # -- screens ------------------------------------------------------------------------------
@@ -71,8 +76,10 @@ class StudyPage:
         self._handles = []
         if self._holder is not None:
             self._holder.remove()
-        with self.tab:
-            self._holder = self.client.gui.add_folder(title)
+        if self._answer is not None:
+            self._answer.remove()
+            self._answer = None
+        self._holder = self.client.gui.add_folder(title)
         return self._holder
 
     def _key(self, hotkey: str, label: str, fn: Callable[[], None]) -> None:
@@ -153,6 +160,9 @@ class StudyPage:
                     if task.changed
                     else "**No change of the looks** makes the robot do what it was shown."
                 )
+        # the answer in a panel of its own, docked right: in view whatever the window's height
+        self._answer = gui.add_panel()
+        with self._answer.add_tab("Your answer"):
             gui.add_markdown("**What made the robot fail?** Tick all that apply (keys 1–9).")
             self.boxes = [
                 gui.add_checkbox(f"{k + 1} · {c['label']}", initial_value=False)
@@ -161,6 +171,9 @@ class StudyPage:
             self.none = gui.add_checkbox(NONE_LABEL, initial_value=False)
             self.matters = gui.add_dropdown(ASK_MATTERS, MATTERS, initial_value=MATTERS[0])
             submit = gui.add_button("Submit answer (Enter)")
+        self._answer.dock_right()
+        self._answer.set_width(ANSWER_PX)
+        self.none.on_update(lambda _: setattr(self.matters, "disabled", bool(self.none.value)))
         slider.on_update(lambda _: self._show_step(int(slider.value)))
         submit.on_click(lambda _: self._guard(self.submit))
         for k, box in enumerate(self.boxes[:9]):
@@ -206,14 +219,14 @@ class StudyPage:
             raise UserError("tick concepts or 'not among these', not both")
         if not none and not selected:
             raise UserError("tick what made it fail, or 'the cause is not among these' (0)")
-        if self.matters.value == MATTERS[0]:
+        if self.matters.value == MATTERS[0] and not none:
             raise UserError("say whether it should matter for what you asked for (Y or N)")
         answer = Answer(
             position=self.position,
             task=self.task.id,
             selected=selected,
             none=none,
-            matters=self.matters.value == MATTERS[1],
+            matters=self.matters.value == MATTERS[1] and not none,
             duration_s=round(time.monotonic() - self.shown_at, 3),
             via="page",
             session=self.session,
@@ -227,7 +240,9 @@ class StudyPage:
 
     def close(self) -> None:
         with contextlib.suppress(Exception):  # the tab may be gone already
-            self.panel.remove()
+            for part in (self._holder, self._answer):
+                if part is not None:
+                    part.remove()
         if self.pid is not None:
             self.study.release(self.pid, self)
 
@@ -259,8 +274,10 @@ def intro_screens(
                 pics["concepts"],
             )
         )
+        looks = str(pics.get("looks", "colour or shape"))  # older studies: no "looks"
         for kind in protocol.kinds:
-            out.append((f"What can change ({world})", KIND_TEXT[kind], pics[f"example_{kind}"]))
+            text = KIND_TEXT[kind].format(looks=looks)
+            out.append((f"What can change ({world})", text, pics[f"example_{kind}"]))
         if conds & {"counterfactual", "both"}:
             out.append(
                 (

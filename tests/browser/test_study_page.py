@@ -36,11 +36,15 @@ class Participant:
 
     def __init__(self, browser, url: str, pid: str, folder: Path, *, keyboard: bool, frames):
         self.pid, self.folder, self.keyboard = pid, folder, keyboard
-        self.page = browser.new_page(viewport={"width": 1400, "height": 1000})
+        self.page = browser.new_page(viewport={"width": 1280, "height": 900})
         self.page.set_default_timeout(WAIT_S * 1000)
         self.page.on("websocket", lambda ws: ws.on("framereceived", lambda f: frames.append(f)))
         self.page.goto(url)
         self.page.get_by_role("button", name="Start").wait_for()
+        for dev in ("Save Canvas", "Dev Settings"):  # viser's developer panel: folded away
+            assert not self.page.get_by_role("button", name=dev).first.is_visible(), dev
+        assert not self.page.get_by_text("Scene tree").first.is_visible()
+        assert not self.page.locator("input[value^='ws://']").first.is_visible()
         UI.dismiss_notifications(self.page)
         self.page.get_by_role("textbox").first.fill(pid)
         self.page.get_by_role("button", name="Start").click()
@@ -87,22 +91,29 @@ class Participant:
         view = self.view(position)
         keys = [c["key"] for c in view["choices"]]
         ticked, none, matters = self.choice(position)
-        page.get_by_role("button", name="Submit answer (Enter)").wait_for()
+        submit = page.get_by_role("button", name="Submit answer (Enter)")
+        submit.wait_for()
+        box, size = submit.bounding_box(), page.viewport_size
+        assert box is not None and box["y"] >= 0 and box["y"] + box["height"] <= size["height"]
+        assert box["x"] >= 0 and box["x"] + box["width"] <= size["width"], "Submit out of view"
         shown = page.content()
         assert ("What changed" in shown or "No change of the looks" in shown) == (
             self.plan()[position]["condition"] == "counterfactual"
         )  # the explanation only where the condition gives it
         if self.keyboard:
-            page.locator("body").click(position={"x": 1300, "y": 900})  # focus off any field
+            page.locator("body").click(
+                position={"x": 800, "y": 880}
+            )  # the 3D view between the panels
             # The keys reach the page after the button, in the order they were registered:
             # Y / N (which only set the answer, so pressing again does no harm) until the page
             # shows its answer; that answer came after every key, Enter included.
             key, said = ("Y", MATTERS[1]) if matters else ("N", MATTERS[2])
             matters_box = page.locator("input[role='combobox']:visible").first
-            UI.wait_until(
-                lambda: page.keyboard.press(key) or matters_box.input_value() == said,
-                f"the {key} key to answer {said!r}",
-            )
+            if not none:  # after "not among these" the page does not ask
+                UI.wait_until(
+                    lambda: page.keyboard.press(key) or matters_box.input_value() == said,
+                    f"the {key} key to answer {said!r}",
+                )
             boxes = page.get_by_role("checkbox")
             for c in ticked:
                 page.keyboard.press(str(keys.index(c) + 1))
@@ -115,11 +126,13 @@ class Participant:
             boxes = page.get_by_role("checkbox")
             for c in ticked:
                 boxes.nth(keys.index(c)).click()
-            if none:
+            if none:  # "should that matter?" is then not asked: its box is disabled
                 boxes.nth(len(keys)).click()
-            choice = "Yes, it matters" if matters else "No, it does not matter"
-            page.locator("input[role='combobox']:visible").first.click()
-            page.get_by_role("option", name=choice).click()
+                expect(page.locator("input[role='combobox']:visible").first).to_be_disabled()
+            else:
+                choice = "Yes, it matters" if matters else "No, it does not matter"
+                page.locator("input[role='combobox']:visible").first.click()
+                page.get_by_role("option", name=choice).click()
             page.get_by_role("button", name="Submit answer (Enter)").click()
         nxt = f"Question {position + 2} of {n}" if position + 1 < n else "Thank you!"
         page.get_by_text(nxt).first.wait_for()

@@ -316,6 +316,30 @@ def test_the_familiarisation_shows_each_explanation_only_to_those_who_get_it(stu
         assert picture is None or (picture.dtype == np.uint8 and picture.shape[2] == 3)
     looks = next(text for title, text, _ in full if title == "The things in the scene (nav2d)")
     assert looks.startswith(get_world("nav2d").description + " These are the looks")
+    assert "the colour or shape of something" in full[2][1]  # nav2d's looks
+
+
+def test_doorkey_is_introduced_by_its_own_looks_and_presence_reads_as_a_cause():
+    from dfa_viz.study.freeze import choices
+    from dfa_viz.study.intro import looks_text
+    from dfa_viz.study.page import intro_screens
+
+    doorkey = get_world("doorkey")
+    assert looks_text(doorkey) == "colour" and looks_text(get_world("nav2d")) == "colour or shape"
+    shown = {"concepts": None, "description": "", "looks": looks_text(doorkey)}
+    shown |= {f"example_{k}": None for k in ("object", "distractor", "other")}
+    p = Protocol(tasks=(("doorkey", 1),))
+    texts = " ".join(text for _, text, _ in intro_screens(p, {"none"}, lambda w: shown))
+    assert "shape" not in texts and "the colour of something it knows" in texts
+    labels = {
+        c["key"]: c["label"]
+        for shift in ("object_ti", "distractor_tr")
+        for c in choices(doorkey, doorkey.test_task(shift, 0))
+    }
+    assert labels["lava.presence"] in ("the lava in the scene", "that the scene has no lava")
+    absent = [c["label"] for c in choices(doorkey, doorkey.test_task("object_ti", 0))]
+    present = [c["label"] for c in choices(doorkey, doorkey.test_task("distractor_tr", 0))]
+    assert "that the scene has no lava" in absent and "the lava in the scene" in present
 
 
 def test_a_world_without_a_description_is_introduced_by_what_it_is_asked():
@@ -490,7 +514,13 @@ def test_answers_given_on_the_page_say_so_and_their_times_are_plotted(study, tmp
                         lambda w=wire, j=j: _folder(w, f"Question {j + 1} of 3"), "a question"
                     )
                     wire.update(wire.one(NONE_LABEL, "Checkbox"), value=True)
-                    wire.update(wire.one(ASK_MATTERS, "Dropdown"), value=MATTERS[2])
+                    if j == 1:  # after "not among these", "should that matter?" is not asked
+                        wire.wait(
+                            lambda w=wire: w.gui[w.one(ASK_MATTERS)].get("disabled"),
+                            "no matters question",
+                        )
+                    else:
+                        wire.update(wire.one(ASK_MATTERS, "Dropdown"), value=MATTERS[2])
                     wire.click("Submit answer (Enter)")
                     nxt = f"Question {j + 2} of 3" if j < 2 else None
                     wire.wait(
@@ -508,6 +538,7 @@ def test_answers_given_on_the_page_say_so_and_their_times_are_plotted(study, tmp
     ]
     given = [a for a in answers if a.get("type") == "answer"]
     assert len(given) == 3 and all(a["via"] == "page" for a in given)
+    assert [a["none"] for a in given] == [True] * 3 and not any(a["matters"] for a in given)
     assert all(a["duration_s"] > 0 for a in given)
     assert [a["session"] for a in given] == [sessions[0], sessions[0], sessions[1]]
     assert sessions[0] != sessions[1] and all(len(s) == 12 for s in sessions)
