@@ -1,6 +1,7 @@
 """The layout a reviewer first sees in a run's recording (its blueprint): the rollouts side
-by side titled with ✓ or ✗, the distances and actions beneath, the texts, the variants and
-the charts."""
+by side titled with ✓ or ✗, the distances and actions beneath (a tab per action dimension,
+or per action of a discrete world, named by the world), the texts in a row of their own,
+then the variants and the charts. Titles are short enough to show whole."""
 
 from __future__ import annotations
 
@@ -26,8 +27,8 @@ def rollout_titles(record: RunRecord) -> dict[str, str]:
     cf = d.counterfactual if d is not None else None
     return {
         "failed": f"the policy{_mark(record.rollout)}",
-        "demonstration": f"your demonstration{_mark(record.demo)}",
-        "counterfactual": f"the policy after the edit{_mark(cf)}",
+        "demonstration": f"demonstration{_mark(record.demo)}",
+        "counterfactual": f"after the edit{_mark(cf)}",
         "finetuned": f"finetuned{_mark(ad.rollout if ad else None)}",
     }
 
@@ -50,21 +51,21 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
     one_step = world.horizon == 1
     if one_step:  # one point per rollout: bars, not curves
         plots: list = [
-            rrb.Spatial2DView(origin="charts/distance", name="distance to the demonstration"),
-            rrb.Spatial2DView(origin="charts/candidates", name="every edit the search tried"),
+            rrb.Spatial2DView(origin="charts/distance", name="distance to the demo"),
+            rrb.Spatial2DView(origin="charts/candidates", name="edits the search tried"),
         ]
     else:
         plots = [
             rrb.TimeSeriesView(
                 origin="action_distance",
-                name="action distance to the demonstration",
+                name="distance to the demo",
                 plot_legend=rrb.PlotLegend("RightTop"),
                 axis_y=rrb.ScalarAxis(range=(0.0, _distance_top(world, record))),
             ),
             rrb.TimeSeriesView(
                 origin="search",
                 contents=["search/candidates/**", "search/epsilon"],
-                name="every edit the search tried (green: follows the demonstration, red: not)",
+                name="edits tried (green: kept)",
                 plot_legend=rrb.PlotLegend(visible=False),
             ),
             rrb.Tabs(
@@ -72,7 +73,7 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
                     rrb.TimeSeriesView(
                         origin="/",
                         contents=[f"rollouts/{name}/action/{k}" for name in ROLLOUTS],
-                        name=f"action: {label}",
+                        name=label,
                     )
                     for k, label in enumerate(action_labels(world))
                 ),
@@ -80,11 +81,12 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
             ),
         ]
     n_aug = len(record.adaptation.augmented) if record.adaptation else 0
-    bottom: list = [
+    texts = [  # a row of their own: wide enough for every column of their tables
         rrb.TextDocumentView(origin="task", name="the task"),
         rrb.TextDocumentView(origin="edit", name="what changed"),
         rrb.TextDocumentView(origin="feedback", name="your feedback"),
     ]
+    bottom: list = []
     if n_aug:
         bottom.append(
             rrb.Grid(
@@ -92,7 +94,7 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
                     rrb.Spatial2DView(origin=f"augmented/a{i:03d}", name=f"variant {i + 1}")
                     for i in range(min(n_aug, AUGMENTED_SHOWN))
                 ),
-                name=f"variants finetuned on ({n_aug})",
+                name=f"variants ({n_aug})",
             )
         )
     bottom += [
@@ -103,8 +105,9 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
         rrb.Vertical(
             rrb.Horizontal(*views),
             rrb.Horizontal(*plots),
+            rrb.Horizontal(*texts),
             rrb.Horizontal(*bottom),
-            row_shares=[3, 2, 2],
+            row_shares=[3, 2, 2, 2],
         ),
         rrb.TimePanel(timeline="step", play_state="paused", state="collapsed"),
         collapse_panels=True,
@@ -112,10 +115,18 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
 
 
 def action_labels(world: World) -> tuple[str, ...]:
-    """A name per action dimension: the world's own, else "action k" (discrete: "action")."""
-    if world.discrete:
-        return ("action (index)",)
+    """A name per action dimension, the world's own, else "action k"; a discrete world's
+    actions are a dimension each (action_series: 1 at the steps that take it)."""
     return world.action_names or tuple(f"action {k}" for k in range(world.action_dim))
+
+
+def action_series(world: World, actions: np.ndarray) -> np.ndarray:
+    """float64 (T, A) to plot: a continuous world's actions as they are; a discrete world's
+    int64 (T,) as one column per action, 1 at the steps that take it and 0 elsewhere."""
+    if world.discrete:
+        a = np.asarray(actions).reshape(-1)
+        return (a[:, None] == np.arange(world.action_dim)[None, :]).astype(np.float64)
+    return np.asarray(actions, np.float64).reshape(len(actions), -1)
 
 
 def _distance_top(world: World, record: RunRecord) -> float:

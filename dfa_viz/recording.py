@@ -10,7 +10,7 @@ import rerun as rr
 
 from dfa_viz import charts
 from dfa_viz.charts import rgb
-from dfa_viz.layout import action_labels, blueprint
+from dfa_viz.layout import action_labels, action_series, blueprint
 from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
 from dfa_viz.report import evaluation_sentence
@@ -27,8 +27,8 @@ SALIENCY_ORDER = 10.0  # draw order of the saliency layer: above the frame (imag
 
 def edit_table(edit: Edit) -> str:
     """Markdown before -> after table of an edit's concepts."""
-    rows = ["| object | concept | before | after |", "|---|---|---|---|"]
-    rows += [f"| {c.slot} | {c.concept} | {c.old} | **{c.new}** |" for c in edit.ordered]
+    rows = ["| concept | before → after |", "|---|---|"]
+    rows += [f"| {c.slot}.{c.concept} | {c.old} → **{c.new}** |" for c in edit.ordered]
     return "\n".join(rows)
 
 
@@ -130,7 +130,7 @@ class Recorder:
             self.rec.log(f"rollouts/{name}/frame", self._image(frame))
         if self.world.demo_input == "pick_place":  # the pick and place points on the frame
             self._pick_place(name, traj)
-        actions = traj.actions.reshape(traj.horizon, -1).astype(np.float64)  # (T, A)
+        actions = action_series(self.world, traj.actions)  # (T, A)
         steps = np.arange(traj.horizon)
         labels = action_labels(self.world)
         for k in range(actions.shape[1]):
@@ -150,7 +150,7 @@ class Recorder:
             entity = f"action_distance/{name}"
             self._series(entity, steps, distance_to_demo(self.world, traj, self._demo))
             self.rec.log(entity, rr.SeriesLines(names=name, colors=rgb(name)), static=True)
-        if name == "demonstration" and not self.world.discrete:
+        if name == "demonstration":  # every world's bound, DoorKey's 0 included
             eps = np.full(traj.horizon, self.world.epsilon)
             for entity in ("action_distance/epsilon", "search/epsilon"):
                 self._series(entity, steps, eps)
@@ -300,13 +300,13 @@ class Recorder:
 
     def feedback(self, feedback: Feedback) -> None:
         space = self.world.space
-        rows = ["| concept | answer | acceptable |", "|---|---|---|"]
+        rows = ["| concept | TI/TR | accepts |", "|---|---|---|"]
         for lab in feedback.labels:
             if lab.relevant:
-                rows.append(f"| {lab.slot}.{lab.concept} | task-relevant (TR) | |")
+                rows.append(f"| {lab.slot}.{lab.concept} | TR | |")
             else:
                 fine = space.describe(lab.slot, lab.concept, lab.acceptable)
-                rows.append(f"| {lab.slot}.{lab.concept} | task-irrelevant (TI) | {fine} |")
+                rows.append(f"| {lab.slot}.{lab.concept} | TI | {fine} |")
         self.rec.log(
             "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
         )

@@ -134,9 +134,8 @@ def capabilities(world) -> None:
     )
     expect(world.view3d is None or isinstance(world.view3d, View3D), "view3d: a View3D or None")
     expect(
-        world.action_names == ()
-        or (not world.discrete and len(world.action_names) == world.action_dim),
-        "action_names: () or one name per continuous action dimension",
+        world.action_names == () or len(world.action_names) == world.action_dim,
+        "action_names: () or one name per continuous action dimension (discrete: per action)",
     )
     expect(set(world.shifts) <= set(SHIFTS), f"shifts {world.shifts} must be among {SHIFTS}")
     expect(world.benchmark == bool(world.shifts), "a Benchmark makes shifts; a plain World none")

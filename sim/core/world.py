@@ -76,7 +76,8 @@ class World(abc.ABC):
         image_extent: (x_left, x_right, y_bottom, y_top) of the rendered frame in the world's
             coordinates, for the click inputs.
         view3d: a 3D scene (sim.core.view3d.View3D), or None.
-        action_names: a name per continuous action dimension for plots (default "action k").
+        action_names: a name per continuous action dimension for plots (default "action k");
+            for a discrete world, a name per action (DoorKey: "turn left", ..., "toggle").
         shifts: the shift kinds `test_task` makes (Benchmark worlds).
         cloning: how its base policy is cloned (Cloning: demonstrations, steps, action noise).
         description: what the agent is and what it should do, in a sentence or two for a

@@ -56,6 +56,7 @@ class DoorKeyWorld(Benchmark):
         Key("toggle", "T", L.TOGGLE),
     )
     idle_action = L.LEFT  # the steps left after the goal turn in place
+    action_names = tuple(k.label for k in sorted(keys, key=lambda k: k.action))
 
     def __init__(self) -> None:
         self._renderer = Renderer()
