@@ -122,7 +122,7 @@ def world_rows(name: str, args: BenchArgs) -> list[Row]:
     from dfa_viz.bench.costs import cost_rows
 
     bench = BENCHES.get(name, WorldBench())
-    rows: list[Row] = list(sweep_rows(name)) if name in SWEPT else []
+    rows: list[Row] = list(sweep_rows(name, repeats=args.repeats)) if name in SWEPT else []
     if name in PAPER_WORLDS:  # the learned search prior on planted size-2 tasks
         rows += prior_rows(bench_prior(name, n_eval=args.prior_tasks))
     if bench.at_scale:

@@ -15,11 +15,12 @@ import numpy as np
 
 from policy.model import Policy
 from search.sweep.cells import CellKey, PairKey, added_slot, cell_keys, key_edit
+from search.sweep.rollouts import Run, replay_success, roll
 from sim.core import Edit, Scene, Task, Trajectory, World
 
 UNIT_ROLLOUTS = 512  # rollouts per unit of work (whole tasks; at least one task)
-FRAME_BYTES = 256 << 20  # frames one rollout_batch call may hold
-MAX_BATCH = 1024  # rollouts per rollout_batch call
+
+Ways = tuple[tuple[str, tuple[tuple[float, ...], ...]], ...]  # (slot, in_the_way places)
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,9 @@ class Unit:
     tasks: tuple[Task, ...]
     pairs: tuple[PairKey, ...] = ()
     """The pair cells to roll out; empty: every single cell."""
+    ways: tuple[Ways, ...] = ()
+    """Per task, the places `World.in_the_way` gives for each slot an edit adds (worked out
+    once, when the plan is cut into units; empty: worked out where the unit runs)."""
 
 
 @dataclass(frozen=True)
@@ -50,13 +54,16 @@ class Plan:
         keys: Sequence[CellKey | PairKey] = pairs or cell_keys(world.space)
         out: list[Unit] = []
         start, count = 0, 0
+        found: list[Ways] = []
         for i, task in enumerate(self.distinct):
             ways: dict[str, list[tuple[float, ...]]] = {}
             edits = [e for e in (key_edit(task.scene, k) for k in keys) if e is not None]
             count += 1 + sum(len(places(world, task, e, ways, pairs=bool(pairs))) for e in edits)
+            found.append(tuple((slot, tuple(map(tuple, at))) for slot, at in ways.items()))
             if count >= UNIT_ROLLOUTS or i == len(self.distinct) - 1:
-                out.append(Unit(len(out), start, self.distinct[start : i + 1], tuple(pairs)))
-                start, count = i + 1, 0
+                todo = self.distinct[start : i + 1]
+                out.append(Unit(len(out), start, todo, tuple(pairs), tuple(found)))
+                start, count, found = i + 1, 0, []
         return tuple(out)
 
 
@@ -117,48 +124,12 @@ class UnitResult:
     """Observations that went through the policy."""
 
 
-@dataclass(frozen=True)
-class _Run:
-    """What the sweep keeps of one rollout (frames are dropped at once)."""
-
-    success: bool
-    actions: np.ndarray  # (T, A) float32 | (T,) int64
-    live: np.ndarray  # (T,) bool: the episode had not ended before step t
-
-
-class _Replay:
-    """An `act` that plays given actions, one step per call: (B, T[, A]) -> (B[, A])."""
-
-    def __init__(self, actions: np.ndarray) -> None:
-        self.actions, self.t = actions, 0
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        a = self.actions[:, min(self.t, self.actions.shape[1] - 1)]
-        self.t += 1
-        return a
-
-
-def batch_size(world: World) -> int:
-    """Rollouts per rollout_batch call: its frames within FRAME_BYTES, at most MAX_BATCH."""
-    h, w, c = world.obs_shape
-    return int(np.clip(FRAME_BYTES // ((world.horizon + 1) * h * w * c), 1, MAX_BATCH))
-
-
-def _roll(world: World, act, tasks: Sequence[Task], scenes: Sequence[Scene]) -> list[_Run]:
-    out: list[_Run] = []
-    step = batch_size(world)
-    for i in range(0, len(scenes), step):
-        trajs = world.rollout_batch(tasks[i : i + step], act, scenes=scenes[i : i + step])
-        out += [_brief(world, tr) for tr in trajs]
-    return out
-
-
-def _brief(world: World, traj: Trajectory) -> _Run:
+def _brief(world: World, traj: Trajectory) -> Run:
     live = np.array([not world.done(s) for s in traj.scenes[:-1]], bool)  # (T,)
-    return _Run(bool(traj.success), traj.actions, live)
+    return Run(bool(traj.success), traj.actions, live)
 
 
-def deviation(world: World, a: _Run, b: _Run) -> float:
+def deviation(world: World, a: Run, b: Run) -> float:
     """Mean per-step action distance of two rollouts over the steps where neither had ended:
     L1 for continuous actions, 1 for a different discrete action; nan when no step is left."""
     mask = a.live & b.live  # (T,)
@@ -190,7 +161,9 @@ def run_unit(world: World, policy: Policy, unit: Unit, *, expert: bool | None = 
         tasks.append(task)
         scenes.append(task.scene)
         keys: Sequence[CellKey | PairKey] = unit.pairs or cell_keys(world.space)
-        ways: dict[str, list[tuple[float, ...]]] = {}
+        ways: dict[str, list[tuple[float, ...]]] = (
+            {slot: list(at) for slot, at in unit.ways[i]} if unit.ways else {}
+        )
         for key in keys:
             edit = key_edit(task.scene, key)
             if edit is None:
@@ -202,9 +175,9 @@ def run_unit(world: World, policy: Policy, unit: Unit, *, expert: bool | None = 
                     tasks.append(task)
                     scenes.append(scene)
                 jobs.append(_Job(unit.first + i, key, seen[scene], place, pos))
-    runs = _roll(world, act, tasks, scenes)
+    runs = roll(world, act, tasks, scenes)
 
-    demos: list[_Run | None] = [None] * len(unit.tasks)
+    demos: list[Run | None] = [None] * len(unit.tasks)
     demo_actions: list[np.ndarray] = []
     if expert:
         for i, task in enumerate(unit.tasks):
@@ -289,15 +262,11 @@ def _solvable(world, unit, jobs, tasks, scenes, runs, demo_actions) -> dict[int,
         return out
     owner = {j.rollout: j.task - unit.first for j in jobs}
     actions = np.stack([demo_actions[owner[r]] for r in failed])  # (F, T[, A])
-    step = batch_size(world)
-    for i in range(0, len(failed), step):
-        part = failed[i : i + step]
-        replay = _Replay(actions[i : i + step])
-        trajs = world.rollout_batch(
-            [tasks[r] for r in part], replay, scenes=[scenes[r] for r in part]
+    replayed = replay_success(
+        world, [tasks[r] for r in failed], [scenes[r] for r in failed], actions
+    )
+    for r, ok in zip(failed, replayed, strict=True):
+        out[r] = ok or bool(
+            world.demonstrate(tasks[r].with_scene(scenes[r])).success  # type: ignore[attr-defined]
         )
-        for r, tr in zip(part, trajs, strict=True):
-            out[r] = bool(tr.success) or bool(
-                world.demonstrate(tasks[r].with_scene(scenes[r])).success  # type: ignore[attr-defined]
-            )
     return out
