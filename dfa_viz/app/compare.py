@@ -136,11 +136,14 @@ class ComparePanel:
         for name, traj, missing in shown:
             title = name + ("" if traj is None else (" ✓" if traj.success else " ✗"))
             frame = frames.frame_at(traj, step)
+            colour = tuple(charts.rgb("failed" if name == policy else name))
             if name == policy and layer is not None:
                 title += f" · {METHOD_NAMES[layer.method]}"
                 if frame is not None and step < len(layer.maps):
                     frame = blend(frame, layer.maps[step])
-            cols.append((title, frame, missing, tuple(charts.rgb(name))))
+            if frame is not None and step == 0 and view.world.demo_input == "pick_place":
+                frame = frames.mark_pick_place(view.world, frame, traj.actions[0], colour)
+            cols.append((title, frame, missing, colour))
         return cols
 
     def _saliency(self, view: View) -> SaliencyLayer | None:

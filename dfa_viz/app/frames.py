@@ -129,3 +129,13 @@ def mark_points(
         if i < len(labels):
             draw.text((x + r + 2, y - r), labels[i], fill=(255, 255, 255), font=_FONT)
     return np.asarray(img)
+
+
+def mark_pick_place(world, frame: np.ndarray, action: np.ndarray, colour) -> np.ndarray:
+    """A pick-and-place action (pick x, y, place x, y in the world's coordinates) drawn on the
+    frame it was taken from: the pick point in the rollout's colour, a line to the place point
+    in white (as the recording draws it)."""
+    x0, x1, y0, y1 = world.image_extent
+    a = np.asarray(action, np.float64).reshape(-1)[:4]
+    uv = [((x - x0) / (x1 - x0), (y1 - y) / (y1 - y0)) for x, y in (a[:2], a[2:4])]
+    return mark_points(frame, uv, colours=(colour, (255, 255, 255)))
