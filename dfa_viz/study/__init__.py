@@ -8,7 +8,9 @@ codes      the participant codes issued in advance (codes.txt), the only ones ac
 answers    the answers on disk, appended and fsynced, per participant
 page       one browser tab: a participant code, the familiarisation, the questions
 server     `dfa study serve`: the page for many participants at once
-analysis   `dfa study analyse`: accuracy, chi-squared, Wilcoxon, answers.csv
-figures    accuracy.png and answers.rrd
+analysis   `dfa study analyse`'s numbers: accuracy, chi-squared, Wilcoxon, the table
+models     the mixed-effects model and the exact test by task
+figures    accuracy.png, durations.png and answers.rrd
+report     the analysis' files: answers.csv, accuracy.md, the figures
 cli        the three subcommands
 """

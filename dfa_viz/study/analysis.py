@@ -30,8 +30,6 @@ Writes DIR/analysis/answers.csv, accuracy.md, accuracy.png, durations.png and an
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -43,7 +41,7 @@ from dfa_viz.study import models
 from dfa_viz.study.answers import Store
 from dfa_viz.study.freeze import TRUTH, load_study, read_json
 from sim import PAPER_WORLDS
-from sim.core import UserError, files
+from sim.core import UserError
 
 ANALYSIS = "analysis"
 COLUMNS = (
@@ -374,30 +372,3 @@ def table_md(a: Analysis) -> str:
         lines += models.markdown(a.mixed, a.exact, a.design)
     lines.append("")
     return "\n".join(lines)
-
-
-def write_csv(path: Path, rows: list[dict]) -> Path:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
-    w.writeheader()
-    w.writerows(rows)
-    return files.write_text(path, buf.getvalue())
-
-
-def write_analysis(folder: Path) -> Analysis:
-    """analyse(folder) and its files under folder/analysis/."""
-    from dfa_viz.study.figures import write_durations, write_plot, write_rrd
-
-    folder = Path(folder)
-    a = analyse(folder)
-    out = folder / ANALYSIS
-    out.mkdir(exist_ok=True)
-    paths = [
-        write_csv(out / "answers.csv", a.rows),
-        files.write_text(out / "accuracy.md", table_md(a)),
-        write_plot(out / "accuracy.png", a.cells),
-        write_durations(out / "durations.png", a.rows),
-        write_rrd(out / "answers.rrd", a),
-    ]
-    a.files.extend(paths)
-    return a

@@ -51,7 +51,8 @@ def study_serve(args: ServeStudyArgs) -> None:
 
 
 def study_analyse(args: AnalyseStudyArgs) -> None:
-    from dfa_viz.study.analysis import table_md, write_analysis
+    from dfa_viz.study.analysis import table_md
+    from dfa_viz.study.report import write_analysis
 
     if not args.folder.is_dir():
         raise UserError(f"{args.folder}: no such study folder")

@@ -11,11 +11,11 @@ import pytest
 from conftest import UI, WAIT_S, ChildServer  # tests/browser/conftest.py
 from playwright.sync_api import expect
 
-from dfa_viz.study.analysis import write_analysis
 from dfa_viz.study.codes import CODES
 from dfa_viz.study.freeze import TRUTH, freeze
 from dfa_viz.study.page import MATTERS
 from dfa_viz.study.protocol import Protocol
+from dfa_viz.study.report import write_analysis
 
 pytestmark = pytest.mark.browser
 

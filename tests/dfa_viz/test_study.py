@@ -13,11 +13,11 @@ import pytest
 import rerun as rr
 
 from dfa_viz.cli import main
-from dfa_viz.study.analysis import write_analysis
 from dfa_viz.study.answers import Answer, Store
 from dfa_viz.study.codes import CODES
 from dfa_viz.study.freeze import TRUTH, freeze, load_study, load_task
 from dfa_viz.study.protocol import Protocol, plan
+from dfa_viz.study.report import write_analysis
 from sim import get_world
 from sim.core import UserError
 
