@@ -87,6 +87,13 @@ class RunState(Hub):
     def busy(self) -> bool:
         return self.jobs.current is not None
 
+    def finetuned(self) -> bool:
+        """Whether the task was finetuned with the marks it has now (and these settings)."""
+        with self._lock:
+            rec = self.record
+            done = rec is not None and rec.adaptation is not None
+            return done and self._finetuned_with == (rec.feedback, self.adapt)
+
     def close(self) -> None:
         """Stop: cancel the running job (it ends at its next check, or is abandoned after
         STOP_WAIT_S; either way its event is never written, so a restart redoes or offers the

@@ -225,13 +225,6 @@ class LoopState(RunState):
             if rec.label(slot, concept) != label:
                 self._commit(E.Marked(label), notify="marks")
 
-    def finetuned(self) -> bool:
-        """Whether the task was finetuned with the marks it has now (and these settings)."""
-        with self._lock:
-            rec = self.record
-            done = rec is not None and rec.adaptation is not None
-            return done and self._finetuned_with == (rec.feedback, self.adapt)
-
     def _finetunable(self) -> tuple[RunRecord, World]:
         """The record to finetune: every edited concept marked, not finetuned with these marks
         yet (the same seed and marks would give the same policy again), a trainable policy."""
