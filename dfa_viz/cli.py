@@ -3,7 +3,7 @@ each client's in its args.py), parsed by tyro.
 
     dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
     dfa export lerobot | view
-    dfa experiment explain
+    dfa experiment explain | search
     dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
@@ -31,12 +31,13 @@ from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, World
 from dfa_viz.experiment.args import ExplainArgs, Q2Args
 from dfa_viz.lerobot.args import ExportArgs, ViewArgs
 from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
-from dfa_viz.sweep.args import SweepArgs
+from dfa_viz.sweep.args import SearchArgs, SweepArgs
 from sim.core import UserError, files
 
 Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experiment`)
     Annotated[Q2Args, tyro.conf.subcommand("q2")],
     Annotated[ExplainArgs, tyro.conf.subcommand("explain")],
+    Annotated[SearchArgs, tyro.conf.subcommand("search")],
 ]
 Study = Union[  # noqa: UP007 (the study's subcommands, `dfa study new|serve|analyse`)
     Annotated[NewStudyArgs, tyro.conf.subcommand("new")],
@@ -58,7 +59,9 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
     Annotated[
         Experiment,
         tyro.conf.subcommand(
-            "experiment", description="Run one of the experiments: q2 (finetuning) or explain."
+            "experiment",
+            description="Run one of the experiments: q2 (finetuning), explain, or search "
+            "(how fast other searches find the sweep's failure modes).",
         ),
     ],
     Annotated[
@@ -180,6 +183,13 @@ def explain(args: ExplainArgs) -> None:
     experiment_explain(args)
 
 
+def search(args: SearchArgs) -> None:
+    from dfa_viz.sweep.compare import run_search_comparison
+
+    record = run_search_comparison(args)
+    print(f"{record['world']}: {len(record['modes'])} failure modes; {args.out}/table.md")
+
+
 def sweep(args: SweepArgs) -> None:
     from dfa_viz.sweep.run import run_sweep
     from dfa_viz.sweep.tables import summary, tables
@@ -232,6 +242,7 @@ HANDLERS = {
     ServeArgs: serve,
     Q2Args: experiment,
     ExplainArgs: explain,
+    SearchArgs: search,
     SweepArgs: sweep,
     ExportArgs: export,
     ViewArgs: view,

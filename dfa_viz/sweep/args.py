@@ -53,3 +53,43 @@ class SweepArgs:
     """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
     progress: bool = True
     """Show a progress bar."""
+
+
+@dataclass(frozen=True)
+class SearchArgs:
+    """Measure how fast other ways of searching the sweep's edit space find its failure modes.
+
+    The sweep of WORLD's single edits on TASKS training tasks is run once and kept trial by
+    trial (an edit on a distinct task at a place: one rollout, deterministic); each search then
+    asks that table for one trial at a time instead of rolling it out: the exhaustive sweep in
+    its order, uniform random sampling, a random-forest surrogate refitted as outcomes come in
+    (FATE's manner), a REINFORCE softmax policy over edits rewarded by failure (RoboMD's
+    manner), and the learned prior's order. A failure mode is an edit whose failure rate beats
+    the control arm with its interval (the sweep's own test); a search confirms one once the
+    trials it asked for show it by that test. Per search: modes confirmed per 1,000 rollouts
+    within BUDGET_SHARE of the table's rollouts, and rollouts to confirm 50% / 90% / all of
+    them (the stochastic searches over SEEDS seeds, mean and 95% t interval).
+
+    Writes OUT/<world>.json, then OUT/table.md and OUT/modes.png from every world's JSON in
+    OUT (run it once per world into the same folder).
+    """
+
+    world: str = "nav2d"
+    """A registered world (`dfa worlds` lists them)."""
+    policy: str | None = None
+    """The policy instead of the base policy (a checkpoint folder, onnx:, torch:, sb3:)."""
+    tasks: int = 100
+    """How many training tasks the sweep runs on (seeds 0, 1, ...)."""
+    seeds: int = 10
+    """Seeds of each stochastic search (uniform, surrogate, reinforce)."""
+    budget_share: float = 0.25
+    """The share of the table's rollouts the per-1,000 rate is read at."""
+    prior_tasks: int = 20
+    """Planted tasks the learned prior is fitted on (0: leave the prior out; only worlds with
+    training tasks and an expert have one)."""
+    workers: int = 1
+    """Units of the sweep side by side (a process pool)."""
+    out: Path = Path("docs/results/sweep")
+    """The results folder."""
+    progress: bool = True
+    """Show progress."""
