@@ -3,8 +3,8 @@ shifts, fresh tasks and distractor places are made from these by sim.mjworld.tas
 
 Positions come from the environment's own reset (its object and goal sampling), seeded; the
 training distribution keeps the resets whose object (the goal, in Reach) lies at most
-TRAIN_MAX_DX_M beyond the gripper's start along x, and `other` keeps those at least
-UNSEEN_MIN_DX_M beyond it, where no training task puts it.
+`train_max_dx_m` beyond the gripper's start along x, and `other` keeps those at least
+`unseen_min_dx_m` beyond it, where no training task puts it (sim.fetch.world.FetchTask).
 """
 
 from __future__ import annotations
@@ -14,11 +14,10 @@ import numpy as np
 from sim.core import Scene
 from sim.mjworld import tasks as MT
 
-TRAIN_MAX_DX_M = 0.05
-UNSEEN_MIN_DX_M = 0.10
 TABLE_TOP_M = 0.4
 TABLE_X_M, TABLE_Y_M = (1.12, 1.48), (0.5, 1.0)  # where a distractor may stand (reachable)
 RESETS_TRIED = 200  # env seeds tried for one task before giving up
+PATH_STEP_M = 0.05  # a way kept clear is kept clear at points this far apart
 
 
 def workspace(has_object: bool) -> MT.Workspace:
@@ -47,18 +46,23 @@ def reset_scene(world, seed: int, *, unseen: bool = False) -> Scene:
             goal = tuple(world.env_state(env))
             scene = MT.initial_scene(world, env, {"target": goal, "table": goal})
             dx = _dx(world, env, scene)
-            if (dx >= UNSEEN_MIN_DX_M) if unseen else (dx <= TRAIN_MAX_DX_M):
+            if (dx >= world.task.unseen_min_dx_m) if unseen else (dx <= world.task.train_max_dx_m):
                 return scene
     raise RuntimeError(f"{world.name}: no reset of seed {seed} puts the object where asked")
 
 
 def keep_clear(world, scene: Scene) -> list[np.ndarray]:
-    """The (x, y) a distractor must keep clear of: the goal, the object, the gripper's start."""
+    """The (x, y) a distractor must keep clear of: the goal, the object, the gripper's start
+    (and, where the task says so, the way between the object and the goal)."""
     pts = [world.goal_of(scene)[:2]]
     if "object" in world.built:
         pts.append(np.asarray(scene.obj("object").pos[:2]))
     with world._lock:
         pts.append(np.asarray(world._open().initial_gripper_xpos[:2]))
+    if world.task.clear_path:  # and the way from the object to the goal
+        a, b = pts[1], pts[0]
+        steps = int(np.linalg.norm(b - a) / PATH_STEP_M) + 1
+        pts += [a + (b - a) * k / steps for k in range(1, steps)]
     return pts
 
 

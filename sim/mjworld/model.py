@@ -122,9 +122,22 @@ def paint(model: mujoco.MjModel, looks: SlotLooks, colour: str) -> None:
         model.site_rgba[s] = rgba
 
 
+STATISTICS = ("meaninertia", "meanmass", "meansize", "extent", "center")
+
+
 def add_distractors(spec: mujoco.MjSpec, names: Sequence[str], *, group: int = 0) -> None:
     """Spare blocks, each a free body (one geom, colliding, drawn in geom group `group`),
-    parked on the floor out of view until a scene brings one into the workspace."""
+    parked on the floor out of view until a scene brings one into the workspace.
+
+    The model keeps the statistics the environment's own model has (MuJoCo computes them from
+    every body: a far-parked block would change the renderer's scale, `extent`, and the
+    solver's), and the solver's scale, meaninertia x nv, stays the environment's own although
+    each block adds 6 degrees of freedom: the solver stops where the environment's own stops,
+    so a rollout is the environment's to the last bits where it is chaotic (a sliding puck)."""
+    own = spec.compile()
+    for field in STATISTICS:
+        setattr(spec.stat, field, np.array(getattr(own.stat, field)).copy())
+    spec.stat.meaninertia = own.stat.meaninertia * max(1, own.nv) / (own.nv + 6 * len(names))
     for k, name in enumerate(names):
         body = spec.worldbody.add_body(name=name, pos=park_pos(k))
         # its inertia given, not left to the compiler (which may read it from some geom

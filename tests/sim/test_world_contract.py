@@ -23,7 +23,12 @@ MINIGRID = [
     "minigrid:MiniGrid-Fetch-5x5-N2-v0",
     "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12",
 ]
-FETCH = ["fetch:FetchPickAndPlace-v4", "fetch:FetchPush-v4", "fetch:FetchReach-v4"]
+FETCH = [
+    "fetch:FetchPickAndPlace-v4",
+    "fetch:FetchPush-v4",
+    "fetch:FetchSlide-v4",
+    "fetch:FetchReach-v4",
+]
 ROBOSUITE = ["robosuite:Lift", "robosuite:Stack"]
 
 
