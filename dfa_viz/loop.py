@@ -28,7 +28,8 @@ from typing import Any
 from dfa_viz.configs import AdaptConfig
 from dfa_viz.users import User
 from policy import Policy, finetune, training_demos
-from policy.evaluate import N_EVAL, Score, score
+from policy.evaluate import N_EVAL, Freshness, Score, freshness, score
+from policy.heldout import Holdout, plan
 from policy.variants import fill_budget, from_feedback, render, sources, variants
 from search import SearchConfig, SearchResult, counterfactual_search
 from sim.core import EMPTY, Edit, Feedback, Label, Task, Trajectory, World, require_success
@@ -86,10 +87,13 @@ class Adaptation:
 
 @dataclass(frozen=True)
 class Evaluation:
-    """Both policies on the same fresh tasks."""
+    """Both policies on the same fresh tasks, and how fresh those are to the finetuning."""
 
     before: Score
     after: Score
+    fresh: Freshness | None = None
+    """Distinct scenes and overlap with the finetuning trajectories (None when read back from
+    a session that did not record it)."""
 
 
 @dataclass(frozen=True)
@@ -181,6 +185,7 @@ class RunRecord:
             "success_after": ev.after.on_shift if ev else None,
             "success_all_before": ev.before.on_all if ev else None,
             "success_all_after": ev.after.on_all if ev else None,
+            "fresh": ev.fresh.to_json() if ev and ev.fresh else None,
             "recording": self.recording,
             "dataset": self.dataset,
         }
@@ -244,12 +249,16 @@ def augmentation(
     config: AdaptConfig,
     known: Sequence[Trajectory],
     seed: int,
+    holdout: Holdout | None = None,
 ) -> list[Trajectory]:
     """The budget's variants over the TI labels: budget - 1 of them at most, from the sources
-    the config names."""
+    the config names; with a `holdout`, none on its held-out layouts or showing its held-out
+    values (what the evaluation keeps for itself)."""
     what = from_feedback(world, feedback)
     if what is None:
         return []
+    if holdout is not None:
+        known, what = holdout.sources(world, known), holdout.restrict(what)
     srcs = sources(task, demo, known if config.finetuning.sources == "all" else ())
     chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=task.scene)
     return render(world, srcs, chosen)
@@ -274,7 +283,10 @@ def adapt(
     if known is None:  # the base policy's training demonstrations, where the world has them
         known = training_demos(world) if world.benchmark else ()
     if augmented is None:
-        augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
+        holdout = plan(world, task, seed) if world.benchmark else None
+        augmented = augmentation(
+            world, task, demo, feedback, config=config, known=known, seed=seed, holdout=holdout
+        )
     tuned, losses = finetune(
         world,
         base,
@@ -290,11 +302,22 @@ def adapt(
 
 
 def evaluate(
-    world: World, base: Policy, tuned: Policy, task: Task, *, n: int = N_EVAL, seed: int
+    world: World,
+    base: Policy,
+    tuned: Policy,
+    task: Task,
+    *,
+    n: int = N_EVAL,
+    seed: int,
+    finetuned_on: Sequence[Trajectory] = (),
 ) -> Evaluation:
-    """Both policies on the same fresh tasks: carrying the shift, and from all of R'."""
+    """Both policies on the same fresh tasks: carrying the shift, and from all of R'; with
+    how fresh those are to the trajectories `finetuned_on` (the demonstration, the variants)."""
+    starts = [t.scenes[0] for t in finetuned_on]
     return Evaluation(
-        score(world, base, task, n=n, seed=seed), score(world, tuned, task, n=n, seed=seed)
+        score(world, base, task, n=n, seed=seed),
+        score(world, tuned, task, n=n, seed=seed),
+        freshness(world, task, starts, n=n, seed=seed),
     )
 
 
@@ -328,7 +351,11 @@ def adapt_and_evaluate(
     if on_scoring is not None:
         on_scoring()
     n = config.finetuning.n_eval
-    return adaptation, evaluate(world, base, adaptation.policy, record.task, n=n, seed=record.seed)
+    tuned_on = [record.demo, *adaptation.augmented]
+    evaluation = evaluate(
+        world, base, adaptation.policy, record.task, n=n, seed=record.seed, finetuned_on=tuned_on
+    )
+    return adaptation, evaluation
 
 
 def adapted(record: RunRecord, adaptation: Adaptation, evaluation: Evaluation | None) -> RunRecord:

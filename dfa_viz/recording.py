@@ -56,6 +56,8 @@ def task_text(record: RunRecord) -> str:
     ev = record.evaluation
     if ev is not None:
         lines.append(f"- {evaluation_sentence(ev, '→')}")
+        if ev.fresh is not None:
+            lines.append(f"- {ev.fresh.sentence()}")
     return "\n".join(lines)
 
 

@@ -58,6 +58,8 @@ def format_report(r: RunRecord) -> str:
         )
     if ev is not None:
         lines.append(f"  {evaluation_sentence(ev)}")
+        if ev.fresh is not None:
+            lines.append(f"  {ev.fresh.sentence()}")
     lines.append(f"  recording: {r.recording}")
     if r.dataset is not None:
         lines.append(f"  LeRobot dataset: {r.dataset}")

@@ -4,18 +4,27 @@ The headline figure is success on fresh tasks that carry the test task's shift (
 the cause that made the base policy fail, in a training layout): did adaptation fix what the
 user saw go wrong? Beside it, success on fresh tasks from all of R' (training looks included):
 did it keep what the policy could already do?
+
+Fresh means fresh: every fresh task stands on a training layout no finetuning trajectory starts
+from, and those carrying a task-irrelevant shift show a value of its cause that no variant
+shows, where the concept has enough values (policy.heldout). Among the candidates drawn, the
+fresh tasks take distinct scenes first. `Freshness` reports beside every score how many
+distinct scenes it was scored on and how many fresh tasks start from a scene (or a layout) a
+finetuning trajectory starts from: 0 by construction.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from policy.heldout import Holdout, layout_of, plan
 from policy.model import Policy
-from sim.core import Task, Trajectory, UserError, World
+from sim.core import Scene, Task, Trajectory, UserError, World
 
 N_EVAL = 10  # the paper's number of evaluation tasks
 LAYOUTS = "train"  # fresh tasks put the objects as a random training layout does
+POOL = 8  # candidates drawn per fresh task (and per held-out value) to find fresh ones in
 
 
 @dataclass(frozen=True)
@@ -48,11 +57,102 @@ class Score:
         return cls(tuple(bool(v) for v in d["shifted"]), tuple(bool(v) for v in d["overall"]))
 
 
-def fresh(world: World, task: Task, *, n: int = N_EVAL, seed: int = 0) -> tuple[list, list]:
-    """The fresh tasks a policy is scored on: (carrying the shift, from all of R')."""
-    return (
-        world.fresh_tasks(task, n, seed, layouts=LAYOUTS, shifted=True),
-        world.fresh_tasks(task, n, seed, layouts=LAYOUTS),
+def _pick(world: World, holdout: Holdout, pools: list[list[Task]], n: int) -> list[Task]:
+    """n candidates on layouts no finetuning trajectory starts from, taken in turn from the
+    pools, distinct scenes first (then the fresh ones again, in order, if too few)."""
+    interleaved = [t for group in zip(*pools, strict=True) for t in group]
+    fresh = [t for t in interleaved if holdout.fresh_layout(world, t.scene)]
+    if not fresh:
+        raise RuntimeError(
+            f"no {world.name} fresh task off the finetuning layouts in {len(interleaved)} drawn"
+        )
+    distinct = list({t.scene: t for t in reversed(fresh)}.values())[::-1]
+    return [distinct[i] if i < len(distinct) else fresh[i - len(distinct)] for i in range(n)]
+
+
+def fresh(
+    world: World, task: Task, *, n: int = N_EVAL, seed: int = 0, holdout: Holdout | None = None
+) -> tuple[list, list]:
+    """The fresh tasks a policy is scored on: (carrying the shift, from all of R'), on the
+    layouts and, on the shift, the values `holdout` (default: heldout.plan) keeps from
+    finetuning."""
+    holdout = holdout or plan(world, task, seed)
+    m = POOL * n
+    shown = holdout.shown(task)
+    shifted = [world.fresh_tasks(t, m, seed, layouts=LAYOUTS, shifted=True) for t in shown]
+    overall = [world.fresh_tasks(task, m * len(shown), seed, layouts=LAYOUTS)]
+    return _pick(world, holdout, shifted, n), _pick(world, holdout, overall, n)
+
+
+@dataclass(frozen=True)
+class Freshness:
+    """How fresh one test task's fresh tasks are to the trajectories a policy was finetuned on."""
+
+    distinct: int
+    """Distinct starting scenes among the fresh tasks carrying the shift."""
+    distinct_all: int
+    """Distinct starting scenes among the fresh tasks from all of R'."""
+    overlap: int
+    """Fresh tasks (of both kinds) whose starting scene starts a finetuning trajectory."""
+    layout_overlap: int
+    """Fresh tasks whose layout a finetuning trajectory starts from."""
+    held_layouts: int
+    """Training layouts held out of finetuning for the evaluation."""
+    held_values: tuple[str, ...]
+    """Values of the cause no variant shows, which the fresh tasks carrying the shift show
+    (() when the concept has too few: they then show the test task's value)."""
+    n: int
+    """Fresh tasks of each kind."""
+
+    def to_json(self) -> dict:
+        return {
+            "distinct_scenes": self.distinct,
+            "distinct_scenes_all": self.distinct_all,
+            "overlap_with_finetuning": self.overlap,
+            "layout_overlap_with_finetuning": self.layout_overlap,
+            "held_out_layouts": self.held_layouts,
+            "held_out_values": list(self.held_values),
+        }
+
+    def sentence(self) -> str:
+        """In words, for reports: distinct scenes and the overlap with finetuning."""
+        values = (
+            f"the shift's {len(self.held_values)} held-out value(s)"
+            if self.held_values
+            else "the test task's value (too few to hold out)"
+        )
+        return (
+            f"fresh tasks: {self.distinct}/{self.n} distinct scenes with the shift, "
+            f"{self.distinct_all}/{self.n} overall; {self.overlap} start from a finetuning "
+            f"scene, {self.layout_overlap} from a finetuning layout ({self.held_layouts} "
+            f"layouts held out; {values})"
+        )
+
+
+def freshness(
+    world: World,
+    task: Task,
+    starts: Sequence[Scene],
+    *,
+    n: int = N_EVAL,
+    seed: int = 0,
+    holdout: Holdout | None = None,
+) -> Freshness:
+    """How fresh the fresh tasks of `task` are to finetuning trajectories starting at `starts`
+    (the demonstration's first scene and each variant's)."""
+    holdout = holdout or plan(world, task, seed)
+    shifted, overall = fresh(world, task, n=n, seed=seed, holdout=holdout)
+    both = [*shifted, *overall]
+    start_set = set(starts)
+    layouts = {layout_of(world, s) for s in starts}
+    return Freshness(
+        len({t.scene for t in shifted}),
+        len({t.scene for t in overall}),
+        sum(t.scene in start_set for t in both),
+        sum(layout_of(world, t.scene) in layouts for t in both),
+        holdout.held_layouts,
+        holdout.held_values,
+        n,
     )
 
 

@@ -63,16 +63,23 @@ class Irrelevant:
     name: the user concepts it stands for ("goal.colour", "lava.presence", joined by "+").
     informed: the looks of an added object follow R' (a person who knows what they want);
         otherwise any look (NH-random's uninformed augmentation).
+    held: (slot, concept, values) no variant may show, set or added (values the evaluation
+        keeps for itself: policy.heldout).
     """
 
     name: str
     members: tuple[tuple[str, str, tuple[str, ...]], ...]
     informed: bool = True
+    held: tuple[tuple[str, str, tuple[str, ...]], ...] = ()
 
     def in_scene(self, scene: Scene) -> Irrelevant | None:
         """The part a scene shows: presence, and the looks of objects present in it."""
         members = tuple(m for m in self.members if m[1] == PRESENCE or scene.obj(m[0]).present)
-        return Irrelevant(self.name, members, self.informed) if members else None
+        return Irrelevant(self.name, members, self.informed, self.held) if members else None
+
+    def allows(self, slot: str, concept: str, value: str) -> bool:
+        """False when `value` of slot.concept is held out."""
+        return not any((s, c) == (slot, concept) and value in v for s, c, v in self.held)
 
 
 def from_feedback(world: World, feedback: Feedback) -> Irrelevant | None:
@@ -172,12 +179,18 @@ def options(world: World, src: Source, what: Irrelevant) -> list[list[Op]]:
     out: list[list[Op]] = []
     for slot, concept, values in what.members:
         if concept != PRESENCE:
-            out.append([SetValue(slot, concept, v) for v in values])
+            out.append(
+                [SetValue(slot, concept, v) for v in values if what.allows(slot, concept, v)]
+            )
             continue
         ops: list[Op] = [Remove(slot)] if ABSENT in values else []
         if PRESENT in values:
             places = world.placements(src.task, slot, src.demo)
-            looks = looks_of(world, src.task, slot, informed=what.informed)
+            looks = [
+                look
+                for look in looks_of(world, src.task, slot, informed=what.informed)
+                if all(what.allows(slot, c, v) for c, v in look)
+            ]
             ops += [Add(slot, look, pos) for look in looks for pos in places]
         out.append(ops)
     return out

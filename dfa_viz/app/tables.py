@@ -93,6 +93,7 @@ def results_text(view: View) -> str:
             f"before `{strip(ev.before.shifted)}`  \nafter  `{strip(ev.after.shifted)}`  \n"
             f"On {len(ev.before.overall)} fresh tasks from everything you want (the training "
             f"looks too): {ev.before.on_all:.0%} → {ev.after.on_all:.0%}"
+            + (f"  \nHow fresh: {ev.fresh.sentence()}." if ev.fresh else "")
         )
     return (
         text + "  \nThe *finetuned* column shows the new policy on this task"
