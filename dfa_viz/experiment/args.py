@@ -33,15 +33,19 @@ class Q2Args:
 
     For every world, shift, condition, budget and seed, one run takes the first task-irrelevant
     test task of that seed the base policy fails, the expert's demonstration of it, and a
-    concept to mark task-irrelevant: NH-random a random concept for each variant; Baseline H a
-    simulated user who names the right concept at the paper's rate without counterfactuals;
+    concept to mark task-irrelevant: NH-random a random concept for each variant; Baseline H,
+    as the paper says, the right concept for each variant at the paper's rate of right answers
+    without counterfactuals and a random wrong one otherwise (--baseline-h fixed: one answer per
+    seed);
     CF H one who sees the loop's real diagnosis and names the right concept at the paper's
     rate with counterfactuals (never when the search found nothing or the wrong thing); Oracle
     always the right one. The budget is the number of finetuning trajectories: the
     demonstration plus budget - 1 distinct variants over the concept (same actions, edited
     states), repeated from the demonstration on when the concept has fewer variants. The
     adaptation is `dfa run`'s own (loop.adapt); both policies are scored on fresh tasks that
-    carry the test task's shift, and on fresh tasks from all of what the user wants.
+    carry the test task's shift, and on fresh tasks from all of what the user wants, on
+    training layouts and (where the cause has enough) values no finetuning trajectory shows;
+    runs.csv says how many distinct scenes they are and that none starts a finetuning one.
 
     Writes OUT/runs.csv (every run), OUT/table.md (means with 95% confidence intervals beside
     the paper's numbers, and CF H against Baseline H with one unit per seed: an exact test where
@@ -70,6 +74,10 @@ class Q2Args:
     """Which conditions."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""
+    baseline_h: Literal["paper", "fixed"] = "paper"
+    """Baseline H's simulated user: "paper" (each augmented trajectory augments the right
+    concept at the paper's rate of right answers, else a random wrong one) or "fixed" (one
+    answer per seed: the right concept at that rate, else one wrong concept throughout)."""
     ray_address: str | None = None
     """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
     progress: bool = True

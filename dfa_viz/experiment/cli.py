@@ -29,7 +29,7 @@ def experiment_q2(args: Q2Args) -> None:
     summary = run_experiment(
         plan,
         out=args.out,
-        settings=Settings(finetuning=args.finetuning, max_size=args.max_size),
+        settings=Settings(args.finetuning, args.max_size, args.baseline_h),
         backend=args.backend,
         workers=args.workers,
         ray_address=args.ray_address,

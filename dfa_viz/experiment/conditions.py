@@ -24,6 +24,11 @@ CONDITION_NAMES = {
     "oracle": "Oracle",
 }
 SIMULATED = ("baseline_h", "cf_h")
+BASELINE_H = ("paper", "fixed")
+"""How Baseline H's simulated user answers: "paper" (the paper's reading: each augmented
+trajectory augments the right concept at the rate of right answers, else a random wrong one) or
+"fixed" (one answer per seed: the right concept at that rate, else one wrong concept for every
+trajectory)."""
 """The conditions whose human is a simulated user (conditions.choose), never a person."""
 
 
@@ -126,6 +131,10 @@ class Choice:
     """The user's concept; None for NH-random (a random concept per augmented trajectory)."""
     correct: bool
     """True when it is the right concept."""
+    rate: float | None = None
+    """Baseline H as the paper reads it: each augmented trajectory augments `concept` (the
+    right one) with this probability, else a wrong visible concept drawn at random (`correct`
+    is then False: no single answer is right)."""
 
 
 def choose(
@@ -137,13 +146,18 @@ def choose(
     right: str,
     visible: tuple[str, ...],
     offered: tuple[str, ...] | None = None,
+    baseline_h: str = "paper",
 ) -> Choice:
     """The concept a condition augments (independent of the budget).
 
     nh_random: no user; each augmented trajectory edits a concept drawn at random.
     oracle: always the right concept.
-    baseline_h: the right concept with the paper's accuracy without counterfactuals; else a
-        random one of the other visible concepts (so the rate of right answers is the paper's).
+    baseline_h: as the paper says, "the correct concept at the same rate of correct responses
+        ..., and randomly otherwise": per augmented trajectory, the right concept with the
+        paper's accuracy without counterfactuals, else a random one of the other visible
+        concepts (a Choice with `rate`; runner.mixed_variants draws them). With
+        baseline_h="fixed", one answer per seed instead: the right concept at that rate, else
+        one random other visible concept for every trajectory.
     cf_h: only when the counterfactual search offered the right concept (`offered`: the
         concepts of its best edit, empty when it found none) can the user name it, and then
         with the paper's accuracy with counterfactuals; else a random other visible concept.
@@ -157,7 +171,10 @@ def choose(
     wrong = [c for c in visible if c != right]
     fallback = wrong[int(rng.integers(len(wrong)))] if wrong else right
     without, with_cf = ACCURACY[(world, shift)]
+    if condition == "baseline_h" and baseline_h == "paper":
+        return Choice(right, False, without) if wrong else Choice(right, True)
     if condition == "baseline_h":
+        assert baseline_h == "fixed", f"Baseline H is one of {BASELINE_H}, not {baseline_h!r}"
         ok = u < without
     elif condition == "cf_h":
         assert offered is not None, "CF H needs the concepts the search offered"

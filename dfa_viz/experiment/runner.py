@@ -8,13 +8,19 @@ A run is the loop's own steps (dfa_viz.loop) with a simulated user in the paper'
 1. The task: the first `<shift>_ti` test task of the seed's stream that the base policy fails
    (policy.failing_test_task), and the scripted expert's demonstration of it.
 2. The concept (conditions.choose): random per trajectory (NH-random), the right one (Oracle),
-   or a simulated user's pick (Baseline H; CF H after the loop's diagnosis on this task).
+   per trajectory the right one at the paper's rate and a random wrong one otherwise (Baseline
+   H as the paper reads it; Settings.baseline_h "fixed": one pick per seed), or a simulated
+   user's pick after the loop's diagnosis on this task (CF H).
 3. The feedback: that concept marked task-irrelevant, with what a person who knows R' accepts
    (policy.variants.acceptable_if_irrelevant), exactly as the simulated user of `dfa run`
    marks it; NH-random instead augments a random concept, any value, per trajectory.
 4. loop.adapt with the settings' AdaptConfig at this budget (the same call `dfa run` and the
    page make), then policy.evaluate.score on the same fresh tasks for every condition and
-   budget of the seed: carrying the shift (`success`) and from all of R' (`success_all`).
+   budget of the seed: carrying the shift (`success`) and from all of R' (`success_all`), on
+   layouts and values no finetuning trajectory shows (policy.heldout); beside them how many
+   distinct scenes they are (`eval_distinct`, `eval_distinct_all`), how many start from a
+   finetuning trajectory's scene or layout (`eval_overlap`, `eval_layout_overlap`: 0) and how
+   many values of the cause are held out (`eval_held_values`: 0 where too few to hold out).
 """
 
 from __future__ import annotations
@@ -57,6 +63,11 @@ COLUMNS = (
     "cf_edit",
     "n_distinct",
     "final_loss",
+    "eval_distinct",
+    "eval_distinct_all",
+    "eval_overlap",
+    "eval_layout_overlap",
+    "eval_held_values",
 )
 KEY = COLUMNS[:5]
 
@@ -69,6 +80,9 @@ class Settings:
     """How each run finetunes and scores (its budget is the run's own)."""
     max_size: int = 2
     """Largest edit the counterfactual search tries (CF H)."""
+    baseline_h: str = "paper"
+    """How Baseline H's simulated user answers (conditions.BASELINE_H): "paper", per augmented
+    trajectory, or "fixed", one answer per seed."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -183,39 +197,69 @@ def feedback_over(world: World, task: Task, concept: UserConcept) -> Feedback:
     return Feedback((Label(slot, name, False, acceptable),))
 
 
-def nh_random_variants(world: World, prep: Prepared, config: AdaptConfig, seed: int):
-    """NH-random: budget - 1 variants, the i-th over a concept drawn uniformly from the
-    visible ones (any instantiation), from the sources in turn."""
+def _walk(world: World, prep: Prepared, config: AdaptConfig, seed: int, tag: str, draw, whats):
+    """budget - 1 variants from the sources in turn (those on held-out layouts left out), the
+    i-th over the i-th of `draw(rng, whats)`'s picks (`whats`: the concepts, each restricted to
+    what the evaluation does not hold out), seeded by (seed, tag)."""
     import numpy as np
 
     from policy import variants as A
+    from policy.heldout import plan
 
-    srcs = A.sources(prep.task, prep.demo, prep.known if config.finetuning.sources == "all" else ())
-    uninformed = [A.over(world, prep.task, uc, informed=False) for uc in prep.visible]
-    rng = np.random.default_rng([seed, A.stable_int("nh_random", world.name, prep.task.shift)])
+    holdout = plan(world, prep.task, seed)
+    known = holdout.sources(world, prep.known) if config.finetuning.sources == "all" else ()
+    srcs = A.sources(prep.task, prep.demo, known)
+    whats = [holdout.restrict(w) for w in whats]
+    rng = np.random.default_rng([seed, A.stable_int(tag, world.name, prep.task.shift)])
     picks: list[A.Irrelevant] = []
 
     def pick(i: int) -> A.Irrelevant:
         while len(picks) <= i:
-            picks.append(uninformed[int(rng.integers(len(uninformed)))])
+            picks.append(draw(rng, whats))
         return picks[i]
 
     chosen = A.variants(
-        world,
-        srcs,
-        pick,
-        config.budget - 1,
-        seed=seed,
-        like=prep.task.scene,
-        n_concepts=len(uninformed),
+        world, srcs, pick, config.budget - 1, seed=seed, like=prep.task.scene, n_concepts=len(whats)
     )
     return A.render(world, srcs, chosen)
+
+
+def nh_random_variants(world: World, prep: Prepared, config: AdaptConfig, seed: int):
+    """NH-random: budget - 1 variants, the i-th over a concept drawn uniformly from the
+    visible ones (any instantiation), from the sources in turn."""
+    from policy import variants as A
+
+    uninformed = [A.over(world, prep.task, uc, informed=False) for uc in prep.visible]
+    return _walk(
+        world, prep, config, seed, "nh_random",
+        lambda rng, whats: whats[int(rng.integers(len(whats)))], uninformed,
+    )  # fmt: skip
+
+
+def mixed_variants(world: World, prep: Prepared, config: AdaptConfig, seed: int, rate: float):
+    """Baseline H as the paper reads it: budget - 1 variants, the i-th over the right concept
+    with probability `rate`, else over one of the other visible concepts drawn uniformly, each
+    with the values a person who calls it task-irrelevant accepts, from the sources in turn."""
+    from policy import variants as A
+
+    informed = [A.over(world, prep.task, uc) for uc in prep.visible]
+    right = [i for i, uc in enumerate(prep.visible) if uc.name == prep.right]
+    wrong = [i for i, uc in enumerate(prep.visible) if uc.name != prep.right]
+    assert right and wrong, "a mixed Baseline H needs the right concept and a wrong one"
+
+    def draw(rng, whats):
+        if rng.random() < rate:
+            return whats[right[0]]
+        return whats[wrong[int(rng.integers(len(wrong)))]]
+
+    return _walk(world, prep, config, seed, "baseline_h", draw, informed)
 
 
 @dataclass(frozen=True)
 class Taken:
     """What a run's condition made of its failure: the prepared task, the concept chosen, the
-    feedback on it (empty for NH random) and, for NH random, the variants drawn instead."""
+    feedback on it (empty for NH random and the paper's Baseline H) and, for those, the
+    variants drawn instead."""
 
     prep: Prepared
     choice: Choice
@@ -239,7 +283,12 @@ def take_feedback(world: World, spec: RunSpec, settings: Settings) -> Taken:
         right=prep.right,
         visible=tuple(c.name for c in prep.visible),
         offered=cf_concepts,
+        baseline_h=settings.baseline_h,
     )
+    if choice.rate is not None:
+        config = settings.config(spec.budget)
+        variants = mixed_variants(world, prep, config, spec.seed, choice.rate)
+        return Taken(prep, choice, Feedback(), variants, cf_edit)
     if choice.concept is None:
         config = settings.config(spec.budget)
         return Taken(
@@ -249,12 +298,20 @@ def take_feedback(world: World, spec: RunSpec, settings: Settings) -> Taken:
     return Taken(prep, choice, feedback_over(world, prep.task, concept), None, cf_edit)
 
 
+def chosen_name(choice: Choice) -> str:
+    """runs.csv's chosen_concept: the concept, "random" (NH-random) or, for the paper's
+    Baseline H, "<right> at <rate>, else random"."""
+    if choice.rate is not None:
+        return f"{choice.concept} at {choice.rate:.2f}, else random"
+    return choice.concept or "random"
+
+
 def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]:
     """Run one spec; returns its runs.csv row (values as strings) plus its wall time
     `duration_s`, the CPU time of this process `cpu_s` (what the run costs on an idle core)
     and `host` (host:pid of the worker)."""
     from dfa_viz.loop import adapt
-    from policy.evaluate import score
+    from policy.evaluate import freshness, score
     from sim import get_world
 
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -276,6 +333,8 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         augmented=augmented,
     )
     after = score(world, adaptation.policy, prep.task, n=n_eval, seed=spec.seed)
+    starts = [t.scenes[0] for t in (prep.demo, *adaptation.augmented)]
+    fresh = freshness(world, prep.task, starts, n=n_eval, seed=spec.seed)
     row: dict[str, object] = {
         "world": spec.world,
         "shift": spec.shift,
@@ -288,11 +347,16 @@ def run_one(spec: RunSpec, settings: Settings = Settings()) -> dict[str, object]
         "success_all_before": f"{prep.before.on_all:.4g}",
         "task_seed": prep.task.seed,
         "right_concept": prep.right,
-        "chosen_concept": choice.concept or "random",
+        "chosen_concept": chosen_name(choice),
         "correct": int(choice.correct),
         "cf_edit": cf_edit,
         "n_distinct": 1 + len(adaptation.augmented),
         "final_loss": f"{adaptation.losses[-1]:.6g}",
+        "eval_distinct": fresh.distinct,
+        "eval_distinct_all": fresh.distinct_all,
+        "eval_overlap": fresh.overlap,
+        "eval_layout_overlap": fresh.layout_overlap,
+        "eval_held_values": len(fresh.held_values),
     }
     assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
     row = {k: str(v) for k, v in row.items()}

@@ -171,7 +171,7 @@ def test_simulated_users_are_right_at_the_paper_rate():
     visible = ("goal.colour", "goal.shape", "distractor.presence")
     kw = dict(world="nav2d", shift="object", right="goal.colour", visible=visible)
     n = 2000
-    base = [choose("baseline_h", seed=s, **kw) for s in range(n)]
+    base = [choose("baseline_h", seed=s, baseline_h="fixed", **kw) for s in range(n)]
     cf = [choose("cf_h", seed=s, offered=("goal.colour",), **kw) for s in range(n)]
     blind = [choose("cf_h", seed=s, offered=(), **kw) for s in range(n)]
     assert abs(np.mean([c.correct for c in base]) - 0.28) < 0.04
