@@ -189,7 +189,10 @@ def markdown_table(rows: Sequence[dict[str, str]], settings: Settings) -> str:
         "# Finetuning success versus finetuning trajectories",
         "",
         f"Mean success on {a.n_eval} fresh tasks that carry the test task's shift (its cause "
-        f"as in the test task, in the training layouts) over {len(seeds)} seed(s) ± the "
+        "at accepted values no variant shows where there are enough, else as in the test task; "
+        "on training layouts no finetuning trajectory starts from: runs.csv's eval_overlap and "
+        "eval_layout_overlap, 0, and eval_distinct, the distinct scenes) over "
+        f"{len(seeds)} seed(s) ± the "
         "half-width of its 95% confidence interval (Student t over seeds); the paper's number "
         f"in brackets. {len(rows)} runs; finetuning max({a.steps}, {a.steps_per_trajectory} "
         f"x budget) steps with {a.replay_share:.0%} of every batch replayed from the training "
