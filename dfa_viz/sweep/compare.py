@@ -171,7 +171,14 @@ def table_md(records: list[dict]) -> str:
                 f"{_fig(run['false_alarms'], 1)} |"
             )
             head = ""
-    lines += ["", "## Commands", ""]
+    lines += [
+        "",
+        "## Commands",
+        "",
+        "Each writes its world's JSON and rebuilds this table and modes.png from every JSON in "
+        "the folder. Times are wall times of one process (the sweep's units on --workers).",
+        "",
+    ]
     for r in records:
         prior = f", prior fitted in {r['prior_s']} s" if r.get("prior_s") is not None else ""
         lines.append(
@@ -179,7 +186,9 @@ def table_md(records: list[dict]) -> str:
         )
     lines += ["", "## Failure modes", ""]
     for r in records:
-        lines.append(f"- {r['world']}: {', '.join(r['modes']) or 'none'}")
+        modes = r["modes"]
+        listed = ", ".join(modes) if len(modes) <= 40 else f"{len(modes)} edits ({r['world']}.json)"
+        lines.append(f"- {r['world']}: {listed or 'none'}")
     return "\n".join(lines) + "\n"
 
 
