@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from policy.methods import check_method
 from sim.core import UserError, check_seed
 
 CONDITIONS = ("none", "counterfactual", "saliency", "both")
@@ -108,12 +109,7 @@ class Protocol:
                 raise UserError(f"unknown shift kind {k!r}; accepted: {', '.join(KINDS)}")
         if not self.kinds or len(set(self.kinds)) != len(self.kinds):
             raise UserError("kinds must name at least one shift kind, each once")
-        from policy.saliency import METHODS
-
-        if self.saliency not in METHODS:
-            raise UserError(
-                f"unknown saliency method {self.saliency!r}; accepted: " + ", ".join(METHODS)
-            )
+        check_method(self.saliency)
         if not self.tasks or len({w for w, _ in self.tasks}) != len(self.tasks):
             raise UserError("[tasks] must name at least one world, each once")
         for world, n in self.tasks:
