@@ -95,7 +95,8 @@ def summary_text(result: SweepResult, shown: int = 15) -> str:
         f"## sweep · {result.world} · {result.policy}",
         f"{len(result.cells)} single edits on {result.tasks} tasks ({result.distinct} distinct); "
         f"the policy fails {result.base_failures} of the distinct ones unedited. Trials are "
-        "distinct starting scenes; the difference is from the same tasks unedited.",
+        "distinct starting scenes; the difference is from the same tasks unedited. Concepts "
+        "and edits are ranked by that difference, largest first (then by how often they fail).",
         "",
         "| # | concept | fails | unedited | difference (95% CI) | trials |",
         "|---|---|---|---|---|---|",
@@ -119,7 +120,12 @@ def summary_text(result: SweepResult, shown: int = 15) -> str:
                 f"{c.control_rate:.0%} | {_diff(c)} | {c.deviation:.3f} |"
             )
     if result.interactions:
-        lines += ["", "**Pairs that fail more often than both alone**", ""]
+        lines += [
+            "",
+            "**Pairs that fail more often than both alone**, ranked by how much more often "
+            "than the worse of the two alone, largest first",
+            "",
+        ]
         lines += [
             f"- {p.label}: {p.failure_rate:.0%} (alone at most {p.singles_rate:.0%})"
             for p in result.interactions[:shown]

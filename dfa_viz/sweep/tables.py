@@ -167,10 +167,14 @@ def tables(result: SweepResult, shown: int = SHOWN):
             _dev(c.deviation),
             "" if c.worst is None else label(c.worst),
         )
-    out = [concepts, _cells(f"the {shown} most damaging single edits", result.cells[:shown])]
+    worst = _cells(
+        f"the {shown} most damaging single edits (by Δ, largest first)", result.cells[:shown]
+    )
+    out = [concepts, worst]
     if result.interactions:
         pairs = result.interactions[:shown]
-        out.append(_cells("pairs that fail more often than both alone", pairs))
+        title = "pairs that fail more often than both alone (by how much more, largest first)"
+        out.append(_cells(title, pairs))
     return out
 
 

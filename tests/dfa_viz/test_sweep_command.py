@@ -44,6 +44,7 @@ def test_the_command_writes_the_table_the_heatmap_and_the_recording(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert "goal.colour" in proc.stdout and "most damaging" in proc.stdout
+    assert "(by Δ, largest first)" in proc.stdout  # each table says what it is ranked by
     with (out / "sweep.csv").open() as f:
         rows = list(csv.DictReader(f))
     kinds = [r["kind"] for r in rows]
