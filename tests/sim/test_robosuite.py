@@ -97,11 +97,13 @@ def test_a_rollout_in_dfa_is_the_environments_own(lift):
     same actions to the same states and the same success, and draw the same frames of the same
     state (robosuite's image rows come bottom first).
 
-    The states agree to 1e-6, not bit for bit: the world's model has the parked distractor's
-    six degrees of freedom beside the stock one's fifteen, which changes the last bits of the
-    solver's sums (4e-8 rad over the 50 steps here, not growing)."""
+    The states agree to 1e-4, not bit for bit: the world's model has the parked distractor's
+    six degrees of freedom beside the stock one's fifteen, which changes the last bits of
+    MuJoCo's sums, and the grasp's contacts amplify them (measured: 2e-7 in this rollout, up
+    to 1.3e-5 from other resets; a controller that kept a stale state was off by 5e-3)."""
     stock = _stock("Lift")
-    obs = stock.reset()
+    with seeded(0):
+        obs = stock.reset()
     like = lift.sample_scene(0)
     scene = lift.scene_of(_copy_into(lift, stock), 0, like)
     task = lift.task_for(scene)
@@ -123,8 +125,8 @@ def test_a_rollout_in_dfa_is_the_environments_own(lift):
         scene = lift.step_batch([scene], a[None])[0]
         _, here = lift.physics(lift.restore(scene))
         d = stock.sim.data._data
-        np.testing.assert_allclose(here.qpos[: len(d.qpos)], d.qpos, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(here.qvel[: len(d.qvel)], d.qvel, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(here.qpos[: len(d.qpos)], d.qpos, rtol=0, atol=1e-4)
+        np.testing.assert_allclose(here.qvel[: len(d.qvel)], d.qvel, rtol=0, atol=1e-4)
         assert lift.succeeds(scene) == bool(stock._check_success())
         lifted += lift.succeeds(scene)
     assert lifted > 0  # the noisy expert lifted the cube: the comparison saw both verdicts
