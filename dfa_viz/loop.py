@@ -29,7 +29,7 @@ from dfa_viz.configs import AdaptConfig
 from dfa_viz.users import User
 from policy import Policy, finetune, training_demos
 from policy.evaluate import N_EVAL, Freshness, Score, freshness, score
-from policy.heldout import Holdout, plan
+from policy.heldout import plan
 from policy.variants import fill_budget, from_feedback, render, sources, variants
 from search import SearchConfig, SearchResult, counterfactual_search
 from sim.core import EMPTY, Edit, Feedback, Label, Task, Trajectory, World, require_success
@@ -249,15 +249,17 @@ def augmentation(
     config: AdaptConfig,
     known: Sequence[Trajectory],
     seed: int,
-    holdout: Holdout | None = None,
+    held_out: bool = True,
 ) -> list[Trajectory]:
     """The budget's variants over the TI labels: budget - 1 of them at most, from the sources
-    the config names; with a `holdout`, none on its held-out layouts or showing its held-out
-    values (what the evaluation keeps for itself)."""
+    the config names; none on the layouts or showing the values the evaluation holds out for
+    this task and seed (policy.heldout.plan, where the world has fresh tasks; `held_out=False`:
+    from every layout and value)."""
     what = from_feedback(world, feedback)
     if what is None:
         return []
-    if holdout is not None:
+    if held_out and world.benchmark:
+        holdout = plan(world, task, seed)
         known, what = holdout.sources(world, known), holdout.restrict(what)
     srcs = sources(task, demo, known if config.finetuning.sources == "all" else ())
     chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=task.scene)
@@ -283,10 +285,7 @@ def adapt(
     if known is None:  # the base policy's training demonstrations, where the world has them
         known = training_demos(world) if world.benchmark else ()
     if augmented is None:
-        holdout = plan(world, task, seed) if world.benchmark else None
-        augmented = augmentation(
-            world, task, demo, feedback, config=config, known=known, seed=seed, holdout=holdout
-        )
+        augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
     tuned, losses = finetune(
         world,
         base,

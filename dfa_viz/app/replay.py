@@ -41,7 +41,7 @@ from dfa_viz.loop import (
     start,
 )
 from policy import Policy, training_demos
-from policy.evaluate import score
+from policy.evaluate import freshness, score
 from sim import get_world
 from sim.core import Label, Trajectory, UserError, World
 
@@ -150,7 +150,7 @@ def _adaptation(
 ) -> tuple[Adaptation, Evaluation | None]:
     """What the finetuning computed, from what its event saved: the variants made again (the
     same seed, the same set), the rollout read back, the scores (or scored again, for sessions
-    written before scores were kept)."""
+    written before scores were kept) and how fresh the scored tasks were to the finetuning."""
     assert rec.demo is not None  # the feedback stages come after the demonstration
     augmented: tuple[Trajectory, ...] = ()
     if event.config is not None:
@@ -174,7 +174,14 @@ def _adaptation(
         tuned = rebuild.checkpoint(event.policy_dir, world)
         before = score(world, rebuild.policy(world), rec.task, seed=rec.seed)
         after = score(world, tuned, rec.task, seed=rec.seed)
-    return adaptation, None if before is None or after is None else Evaluation(before, after)
+    if before is None or after is None:
+        return adaptation, None
+    fresh = None  # how fresh the scored tasks were to the variants, where they are made again
+    if event.config is not None:
+        starts = [t.scenes[0] for t in (rec.demo, *augmented)]
+        n = event.config.finetuning.n_eval
+        fresh = freshness(world, rec.task, starts, n=n, seed=rec.seed)
+    return adaptation, Evaluation(before, after, fresh)
 
 
 FEEDBACK = ("feedback", "adapted")

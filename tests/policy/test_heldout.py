@@ -33,10 +33,9 @@ def test_fresh_tasks_are_disjoint_from_every_finetuning_start(name, shift):
     demo, known = world.demonstrate(task), training_demos(world)
     holdout = plan(world, task, seed)
     config = AdaptConfig(BUDGET)
-    variants = augmentation(
-        world, task, demo, oracle_feedback(world, task), config=config, known=known, seed=seed,
-        holdout=holdout,
-    )  # fmt: skip
+    variants = augmentation(  # held out by default: the evaluation's plan for the task and seed
+        world, task, demo, oracle_feedback(world, task), config=config, known=known, seed=seed
+    )
     assert len(variants) >= 10  # a real augmentation, over several layouts
     starts = [t.scenes[0] for t in (demo, *variants)]
     start_layouts = {layout_of(world, s) for s in starts}
@@ -60,8 +59,9 @@ def test_fresh_tasks_are_disjoint_from_every_finetuning_start(name, shift):
 
     # without the held-out split, the same augmentation starts on the fresh tasks' layouts
     unheld = augmentation(
-        world, task, demo, oracle_feedback(world, task), config=config, known=known, seed=seed
-    )
+        world, task, demo, oracle_feedback(world, task), config=config, known=known, seed=seed,
+        held_out=False,
+    )  # fmt: skip
     unheld_layouts = {layout_of(world, v.scenes[0]) for v in unheld}
     assert any(layout_of(world, t.scene) in unheld_layouts for t in shifted)
 
