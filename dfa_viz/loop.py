@@ -251,10 +251,8 @@ def augmentation(
     seed: int,
     held_out: bool = True,
 ) -> list[Trajectory]:
-    """The budget's variants over the TI labels: budget - 1 of them at most, from the sources
-    the config names; none on the layouts or showing the values the evaluation holds out for
-    this task and seed (policy.heldout.plan, where the world has fresh tasks; `held_out=False`:
-    from every layout and value)."""
+    """Up to budget - 1 variants over the TI labels from the config's sources, none on the
+    layouts or values the evaluation holds out (policy.heldout.plan; held_out=False: all)."""
     what = from_feedback(world, feedback)
     if what is None:
         return []
