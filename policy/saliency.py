@@ -20,6 +20,11 @@ float32 (T, H, W): the attribution of a region is its sum over the region's pixe
                         feature turned off to black; 64 coalitions, fitted by exact weighted
                         least squares; |Shapley value| of a feature spread evenly over its pixels
 
+`attributions` keeps the sign beside: the same methods' attribution summed over the colour
+channels without abs() (Grad-CAM's map and KernelSHAP's values as they are), positive where a
+pixel raises the explained number (pulls the action towards the demonstration), negative where
+it pushes it away. `attribute` is the unsigned density alone.
+
 Only the project's own image policies (policy.model.ImagePolicy) can be explained: the methods
 take gradients of, or perturb, float frames. A non-finite attribution is refused (UserError).
 """
@@ -117,6 +122,24 @@ def attribute(
     policy is explained against; features: int64 (T, H, W) object labels (kernel_shap only;
     feature_labels). Runs with gradients on whatever torch threads are set.
     """
+    return attributions(
+        policy, obs, demo_actions, method, features=features, seed=seed, config=config
+    )[0]
+
+
+def attributions(
+    policy: Policy,
+    obs: np.ndarray,
+    demo_actions: np.ndarray,
+    method: str,
+    *,
+    features: np.ndarray | None = None,
+    seed: int = 0,
+    config: SaliencyConfig = SaliencyConfig(),
+) -> tuple[np.ndarray, np.ndarray]:
+    """(unsigned, signed), float32 (T, H, W) each, from one run of the method: the density
+    `attribute` returns (>= 0), and the signed attribution per pixel (negative: the pixel
+    pushes the policy's output away from the demonstrated action). Arguments as `attribute`."""
     check_method(method)
     net = _image_net(policy)
     obs = np.asarray(obs)
@@ -125,7 +148,8 @@ def attribute(
     )
     assert len(demo_actions) == len(obs), "one demonstrated action per frame"
     if len(obs) == 0:
-        return np.zeros(obs.shape[:3], np.float32)
+        empty = np.zeros(obs.shape[:3], np.float32)
+        return empty, empty.copy()
     model = _Explained(net, policy.discrete).eval()
     frames = torch.from_numpy(obs.astype(np.float32))  # (T, H, W, 3) in [0, 255]
     if policy.discrete:
@@ -137,22 +161,27 @@ def attribute(
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         if method == "integrated_gradients":
-            maps = _integrated_gradients(model, frames, extra, config)
+            raw = _integrated_gradients(model, frames, extra, config)
         elif method == "occlusion":
-            maps = _occlusion(model, frames, extra, config)
+            raw = _occlusion(model, frames, extra, config)
         elif method == "grad_cam":
-            maps = _grad_cam(model, net, frames, extra)
+            raw = _grad_cam(model, net, frames, extra)
         else:
             if features is None or features.shape != obs.shape[:3]:
                 raise UserError("kernel_shap needs object labels (T, H, W) for the frames")
-            maps = _kernel_shap(model, frames, extra, features, config)
-    out = maps.detach().numpy().astype(np.float32)  # (T, H, W)
-    if not np.isfinite(out).all():
+            raw = _kernel_shap(model, frames, extra, features, config)
+    raw = raw.detach()  # (T, H, W, 3) per channel, or (T, H, W)
+    if raw.ndim == 4:
+        unsigned, signed = raw.abs().sum(dim=-1), raw.sum(dim=-1)
+    else:
+        unsigned, signed = raw.abs(), raw
+    out = unsigned.numpy().astype(np.float32), signed.numpy().astype(np.float32)
+    if not (np.isfinite(out[0]).all() and np.isfinite(out[1]).all()):
         raise UserError(
             f"{method} gave non-finite attributions (NaN or inf) for this policy: no saliency "
             "map or ranking is computed from them"
         )
-    return np.maximum(out, 0.0)
+    return np.maximum(out[0], 0.0), out[1]
 
 
 # -- the explained number ----------------------------------------------------------------------
@@ -200,7 +229,7 @@ def _integrated_gradients(model, frames, extra, config: SaliencyConfig) -> torch
         internal_batch_size=config.batch,
         **extra,
     )  # (T, H, W, 3)
-    return attr.abs().sum(dim=-1)
+    return attr
 
 
 def occlusion_window(h: int, config: SaliencyConfig = SaliencyConfig()) -> tuple[int, int]:
@@ -223,7 +252,7 @@ def _occlusion(model, frames, extra, config: SaliencyConfig) -> torch.Tensor:
             perturbations_per_eval=per_eval,
             **extra,
         )  # (T, H, W, 3)
-    return attr.abs().sum(dim=-1)
+    return attr
 
 
 def grad_cam_layer(net: ImagePolicy) -> nn.Conv2d:
@@ -250,7 +279,7 @@ def _grad_cam(model, net: ImagePolicy, frames, extra) -> torch.Tensor:
         frames, relu_attributions=False, **extra
     )  # (T, 1, h, w)
     up = LayerAttribution.interpolate(cam, tuple(frames.shape[1:3]), interpolate_mode="bilinear")
-    return up[:, 0].abs()  # (T, H, W)
+    return up[:, 0]  # (T, H, W), signed
 
 
 def _kernel_shap(model, frames, extra, features: np.ndarray, config) -> torch.Tensor:
@@ -282,7 +311,7 @@ def _kernel_shap(model, frames, extra, features: np.ndarray, config) -> torch.Te
                     **one,
                 ).reshape(-1)  # (F,)
         counts = torch.bincount(labels.reshape(-1), minlength=len(ids)).clamp(min=1)
-        out[t] = (values.abs() / counts)[labels]
+        out[t] = (values / counts)[labels]  # signed
     return out
 
 

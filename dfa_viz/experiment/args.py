@@ -95,11 +95,14 @@ class ExplainArgs:
     test scene shows: the counterfactual search (the concepts its best edit changes first);
     captum's Integrated Gradients, Occlusion, Grad-CAM and KernelSHAP over the failed
     rollout's frames against the demonstrated actions, reduced to the attribution inside each
-    object's pixels; a random order as the floor. A hit is the planted cause ranked first
+    object's pixels, read four ways (the attribution's magnitude or its sign, over every step
+    or the steps before the rollout diverges); a random order as the floor. A hit is the
+    cause's object ranked first (object top-1, the headline), the planted cause ranked first
     (top-1) or among the first three (top-3).
 
-    Writes OUT/tasks.csv (every task and explainer), OUT/timings.csv, OUT/table.md (hit rates
-    with 95% Wilson intervals beside the paper's user accuracies, and time per task) and
+    Writes OUT/tasks.csv (every task, explainer and readout), OUT/timings.csv, OUT/table.md
+    (hit rates over distinct tasks with 95% Wilson intervals beside the paper's user
+    accuracies, and time per task) and
     OUT/hits.png. Tasks already in OUT/tasks.csv are skipped, so an interrupted benchmark
     resumes where it stopped; the same seeds give the same tasks.csv on either backend.
     """

@@ -13,20 +13,35 @@ base policy):
                    object's pixels (policy.concept_saliency)
    random          a seeded random order: the floor
 4. Per explainer one row: where the cause ranks, top-1 and top-3 hits, and whether the first
-   concept belongs to the cause's object (the object-level reading a map can give).
+   concept belongs to the cause's object (the object-level reading a map can give). A saliency
+   method has a row per readout of its one set of maps (policy.concept_saliency): the
+   attribution's magnitude ("abs") or its sign ("signed": the object that pushes the action
+   away from the demonstration most first), over every explained step ("all") or the steps
+   before the rollout leaves the demonstration ("before"); the search and the random order have
+   one row (reading and span "-"). `task_id` names the task's scene and cause, so that tables
+   count distinct tasks (several seeds can draw one task; TI and TR tasks share scenes).
 The benchmark as a whole (its plan, running it, its table and plot) is explain_run.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import os
 import socket
 import time
 from dataclasses import asdict, dataclass, field
 
 from dfa_viz.experiment.args import EXPLAINERS
-from policy.methods import METHOD_NAMES
+from policy.methods import METHOD_NAMES, METHODS
+
+READINGS = ("abs", "signed")  # policy.concept_saliency's, written here without torch
+SPANS = ("all", "before")
+READOUTS = tuple((r, s) for r in READINGS for s in SPANS)
+"""A saliency method's readouts, (reading, span), in the order tables list them."""
+NONE = "-"
+"""Reading and span of the explainers that have one reading (the search, the random order)."""
 
 
 def explainer_names() -> dict[str, str]:
@@ -40,17 +55,33 @@ COLUMNS = (
     "shift",
     "seed",
     "explainer",
+    "reading",
+    "span",
     "task_seed",
+    "task_id",
     "cause",
     "rank",
     "hit1",
     "hit3",
     "object_hit1",
     "n_concepts",
+    "n_steps",
     "ranking",
 )
-KEY = COLUMNS[:4]
-TIMING_COLUMNS = (*KEY, "duration_s", "host")
+KEY = COLUMNS[:6]
+TIMING_COLUMNS = (*COLUMNS[:4], "duration_s", "host")
+"""A timing is per explainer and task: every readout of a method comes from one set of maps."""
+
+
+def readouts_of(explainer: str) -> tuple[tuple[str, str], ...]:
+    """The (reading, span) rows an explainer has per task."""
+    return READOUTS if explainer in METHODS else ((NONE, NONE),)
+
+
+def task_id(task) -> str:
+    """12 hex digits naming a task's scene and planted cause."""
+    text = json.dumps({"scene": task.scene.to_dict(), "cause": task.cause}, sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
 @dataclass(frozen=True)
@@ -102,7 +133,7 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
     timings.csv rows (wall seconds of each explainer on this task, what it needs included:
     the search; the saliency methods' maps plus the object masks they share)}."""
     from policy import failing_test_task
-    from policy.concept_saliency import prepare, saliency_ranking
+    from policy.concept_saliency import frame_maps, prepare, readouts
     from policy.saliency import SaliencyConfig
     from search import SearchConfig, counterfactual_search
     from search.ranking import concept_ranking
@@ -120,8 +151,11 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
     frames, frames_s = None, 0.0
     host = f"{socket.gethostname()}:{os.getpid()}"
     rows, timings = [], []
+    tid = task_id(task)
     for explainer in settings.explainers:
         t0 = time.perf_counter()
+        rankings: dict[tuple[str, str], tuple[str, ...]] = {}
+        steps: dict[tuple[str, str], int | str] = {(NONE, NONE): NONE}
         if explainer == "counterfactual":
             result = counterfactual_search(
                 world,
@@ -130,37 +164,50 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
                 demo,
                 config=SearchConfig.for_world(world, max_size=settings.max_size),
             )
-            ranking = concept_ranking(world.space, task.scene, result)
+            rankings[(NONE, NONE)] = concept_ranking(world.space, task.scene, result)
         elif explainer == "random":
             order = _rng(spec, "random-ranking").permutation(len(visible))
-            ranking = tuple(visible[int(i)].name for i in order)
+            rankings[(NONE, NONE)] = tuple(visible[int(i)].name for i in order)
         else:
             if frames is None:
                 frames = prepare(world, task, rollout, demo)
                 frames_s = time.perf_counter() - t0
                 t0 = time.perf_counter()
             seed = int(_rng(spec, explainer).integers(2**31))
-            ranking = saliency_ranking(policy, frames, explainer, seed=seed, config=config).concepts
+            unsigned, signed = frame_maps(policy, frames, explainer, seed=seed, config=config)
+            for key, ranking in readouts(frames, unsigned, signed, seed=seed).items():
+                rankings[key] = ranking.concepts
+                steps[key] = frames.steps(key[1])
             t0 -= frames_s  # the masks are part of every saliency method's cost
         duration = time.perf_counter() - t0
-        rank = ranking.index(cause) + 1 if cause in ranking else 0
-        row = {
-            "world": spec.world,
-            "shift": spec.shift,
-            "seed": spec.seed,
-            "explainer": explainer,
-            "task_seed": task.seed,
-            "cause": cause,
-            "rank": rank,
-            "hit1": int(rank == 1),
-            "hit3": int(1 <= rank <= 3),
-            "object_hit1": int(bool(ranking) and objects[ranking[0]] == objects[cause]),
-            "n_concepts": len(visible),
-            "ranking": " ".join(ranking),
-        }
-        assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
-        rows.append({k: str(v) for k, v in row.items()})
+        assert tuple(rankings) == readouts_of(explainer), "readouts and readouts_of disagree"
+        for (reading, span), ranking in rankings.items():
+            rank = ranking.index(cause) + 1 if cause in ranking else 0
+            row = {
+                "world": spec.world,
+                "shift": spec.shift,
+                "seed": spec.seed,
+                "explainer": explainer,
+                "reading": reading,
+                "span": span,
+                "task_seed": task.seed,
+                "task_id": tid,
+                "cause": cause,
+                "rank": rank,
+                "hit1": int(rank == 1),
+                "hit3": int(1 <= rank <= 3),
+                "object_hit1": int(bool(ranking) and objects[ranking[0]] == objects[cause]),
+                "n_concepts": len(visible),
+                "n_steps": steps[(reading, span)],
+                "ranking": " ".join(ranking),
+            }
+            assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
+            rows.append({k: str(v) for k, v in row.items()})
         timings.append(
-            {**{k: str(row[k]) for k in KEY}, "duration_s": f"{duration:.4f}", "host": host}
+            {
+                **{k: str(row[k]) for k in TIMING_COLUMNS[:4]},
+                "duration_s": f"{duration:.4f}",
+                "host": host,
+            }
         )
     return {"rows": rows, "timings": timings}

@@ -1,12 +1,17 @@
 """The explanation benchmark's folder (folder.ResultsFolder) and the table of hit rates.
 
     <out>/config.json   the settings every job shares (a folder keeps to one set)
-    <out>/tasks.csv     one row per (world, shift, seed, explainer) (explain.COLUMNS),
-                        resumable (folder.py)
-    <out>/timings.csv   per row: its key, the explainer's wall time on that task and the worker
-                        (not part of the results: it differs between executions)
-    <out>/table.md      hit rates with 95% Wilson intervals, and time per task
+    <out>/tasks.csv     one row per (world, shift, seed, explainer, reading, span)
+                        (explain.COLUMNS), resumable (folder.py)
+    <out>/timings.csv   per explainer and task: the explainer's wall time on that task and
+                        the worker (not part of the results: it differs between executions)
+    <out>/table.md      hit rates over distinct tasks with 95% Wilson intervals, per readout;
+                        time per task
     <out>/hits.png      (explain_figures.py)
+
+A rate counts distinct tasks (explain.task_id), not rows: the rows of one task (seeds that drew
+the same task; a world's TI and TR shifts, which share scenes) count once, with their mean hit
+(the same for every explainer but the seeded tie-breaks and the random order).
 
 An interrupted benchmark resumes from the folder: a task is done when every explainer has its
 row.
@@ -23,9 +28,12 @@ from dfa_viz.experiment.conditions import ACCURACY
 from dfa_viz.experiment.explain import (
     COLUMNS,
     EXPLAINERS,
+    NONE,
+    READOUTS,
     TIMING_COLUMNS,
     ExplainSettings,
     explainer_names,
+    readouts_of,
 )
 from dfa_viz.experiment.folder import ResultsFolder
 from search.stats import wilson
@@ -33,14 +41,29 @@ from sim import PAPER_WORLDS
 from sim.core import files
 
 METRICS = {
+    "object_hit1": "object top-1",
     "hit1": "top-1",
     "hit3": "top-3",
-    "object_hit1": "object top-1",
+}
+"""The hit columns, the headline first: a map can name an object, not which of its concepts."""
+READOUT_NAMES = {
+    ("abs", "all"): "|attribution|, all steps",
+    ("signed", "all"): "signed (pushes away from the demonstration), all steps",
+    ("abs", "before"): "|attribution|, steps before the rollout diverges",
+    ("signed", "before"): "signed, steps before the rollout diverges",
 }
 
 
-def row_key(row: Mapping[str, str]) -> tuple[str, str, int, str]:
-    return (row["world"], row["shift"], int(row["seed"]), row["explainer"])
+def row_key(row: Mapping[str, str]) -> tuple[str, str, int, str, str, str]:
+    """A row's key; a timing's (one per explainer and task) has reading and span "-"."""
+    return (
+        row["world"],
+        row["shift"],
+        int(row["seed"]),
+        row["explainer"],
+        row.get("reading", NONE),
+        row.get("span", NONE),
+    )
 
 
 def explain_folder(out: str | Path, settings: ExplainSettings) -> ResultsFolder:
@@ -54,30 +77,41 @@ def explain_folder(out: str | Path, settings: ExplainSettings) -> ResultsFolder:
         timing_columns=TIMING_COLUMNS,
         key=row_key,
         unit=lambda r: (r["world"], r["shift"], int(r["seed"])),
-        parts=len(settings.explainers),
+        parts=sum(len(readouts_of(e)) for e in settings.explainers),
     )
 
 
 # -- statistics -----------------------------------------------------------------------------------
+def readout_rows(
+    rows: Iterable[Mapping[str, str]], readout: tuple[str, str]
+) -> list[Mapping[str, str]]:
+    """The rows of one saliency readout, with the search's and the random order's one row."""
+    return [r for r in rows if (r["reading"], r["span"]) in (readout, (NONE, NONE))]
+
+
 def rates(
     rows: Iterable[Mapping[str, str]], metric: str
-) -> dict[tuple[str, str, str], tuple[int, int]]:
-    """(world, shift, explainer) -> (hits, tasks) of a metric column (hit1, hit3, object_hit1);
-    world and shift "all" pool over them."""
-    out: dict[tuple[str, str, str], list[int]] = defaultdict(lambda: [0, 0])
+) -> dict[tuple[str, str, str], tuple[float, int]]:
+    """(world, shift, explainer) -> (hits, distinct tasks) of a metric column (hit1, hit3,
+    object_hit1) over rows of one readout: a task's hit is the mean over its rows; world and
+    shift "all" pool over them, a task counted once."""
+    got: dict[tuple[str, str, str], dict[tuple[str, str], list[int]]] = defaultdict(
+        lambda: defaultdict(list)
+    )
     for r in rows:
-        hit = int(r[metric])
+        task = (r["world"], r["task_id"])
         for key in (
             (r["world"], r["shift"], r["explainer"]),
             (r["world"], "all", r["explainer"]),
             ("all", "all", r["explainer"]),
         ):
-            out[key][0] += hit
-            out[key][1] += 1
-    return {k: (v[0], v[1]) for k, v in out.items()}
+            got[key][task].append(int(r[metric]))
+    return {
+        k: (sum(sum(h) / len(h) for h in tasks.values()), len(tasks)) for k, tasks in got.items()
+    }
 
 
-def cell(k: int, n: int) -> str:
+def cell(k: float, n: int) -> str:
     """A rate in percent with its 95% Wilson interval: "94 (84–98)"."""
     if n == 0:
         return "—"
@@ -120,52 +154,43 @@ def markdown_table(
     timings: Sequence[Mapping[str, str]],
     settings: ExplainSettings,
 ) -> str:
-    """Per metric, one table: a row per world and shift, a column per explainer."""
+    """Per metric and readout, one table: a row per world and shift, a column per explainer."""
     explainers, pairs = panel_order(rows)
     names = explainer_names()
     tasks = {(r["world"], r["shift"], r["seed"]) for r in rows}
     per = sorted({sum(1 for t in tasks if t[:2] == p) for p in pairs})
     m = f"{per[0]}" if len(per) == 1 else f"{per[0]}–{per[-1]}"
+    distinct = len({(r["world"], r["task_id"]) for r in rows})
     lines = [
         "# Which concept broke the policy? Explanations against the planted cause",
         "",
-        f"{len(tasks)} failing test tasks ({m} per world and shift, seeds 0 .. M-1), "
-        "each the first task of its seed's stream that the committed base policy fails, "
-        "with the scripted expert's demonstration. Each explainer ranks the concepts visible "
-        "in the test scene; a hit is the planted cause (as a person names it: "
-        '"goal.shape", "lava.presence") ranked first (top-1) or among the first three '
-        "(top-3); object top-1: the first concept belongs to the cause's object (all a "
-        "saliency map can tell apart). Percent of tasks, 95% Wilson interval in brackets. "
+        f"{len(tasks)} failing test tasks ({m} per world and shift, seeds 0 .. M-1; "
+        f"{distinct} distinct tasks: seeds can draw the same task, and a world's TI and TR "
+        "shifts share scenes), each the first task of its seed's stream that the committed "
+        "base policy fails, with the scripted expert's demonstration. Each explainer ranks the "
+        "concepts visible in the test scene. **Object top-1**, the headline: the first concept "
+        "belongs to the cause's object (all a saliency map can tell apart: concepts of one "
+        "object share its pixels and tie, broken at random, so concept top-1 caps a map at "
+        "the share of its object's concepts); top-1 and top-3: the planted cause (as a person "
+        'names it: "goal.shape", "lava.presence") ranked first or among the first three. '
+        "Percent of **distinct** tasks (a task's rows count once, with their mean hit), 95% "
+        "Wilson interval over the distinct tasks in brackets; n: distinct tasks. "
         f"Counterfactual search up to {settings.max_size} changes; saliency maps by captum "
-        "over the failed rollout's steps against the demonstrated actions, reduced to the "
-        "attribution inside each object's pixels; concepts of one object tie (a map shows "
-        "an object, not which of its concepts matters), broken at random. The paper's users, "
-        "with / without counterfactuals, named the shifted concept at the rates in the last "
-        "column (its object and distractor shifts; TI and TR pooled); for a new distractor "
-        "the paper counted an answer naming the distractor's looks as right, which is the "
-        "object top-1 reading here.",
+        "over the failed rollout's steps against the demonstrated actions, read four ways "
+        "from one set of maps: the attribution's magnitude or its sign (the object whose "
+        "pixels push the action away from the demonstration most first) summed inside each "
+        "object's pixels, over every step or over the steps before the rollout leaves the "
+        "demonstration. The search and the random order have one reading, repeated in every "
+        "table. The paper's users, with / without counterfactuals, named the shifted concept "
+        "at the rates in the last column of the top-1 tables (its object and distractor "
+        "shifts; TI and TR pooled); for a new distractor the paper counted an answer naming "
+        "the distractor's looks as right, which is the object top-1 reading here.",
     ]
     for metric, title in METRICS.items():
-        table = rates(rows, metric)
-        lines += [
-            "",
-            f"## {title[0].upper()}{title[1:]} hits (%)",
-            "",
-            "| world | shift | "
-            + " | ".join(names[e] for e in explainers)
-            + (" | paper's users (CF / no CF) |" if metric == "hit1" else " |"),
-            "|---|---|" + "---|" * len(explainers) + ("---|" if metric == "hit1" else ""),
-        ]
-        for world, shift in [*pairs, *((w, "all") for w in dict.fromkeys(p[0] for p in pairs))]:
-            cols = [cell(*table.get((world, shift, e), (0, 0))) for e in explainers]
-            extra = ""
-            if metric == "hit1":
-                extra = f" {paper_users(world, shift)} |" if shift != "all" else " |"
-            lines.append(f"| {world} | {shift} | " + " | ".join(cols) + " |" + extra)
-        cols = [cell(*table.get(("all", "all", e), (0, 0))) for e in explainers]
-        lines.append(
-            "| **all** | | " + " | ".join(cols) + " |" + (" |" if metric == "hit1" else "")
-        )
+        for readout in READOUTS:
+            table = rates(readout_rows(rows, readout), metric)
+            head = f"{title[0].upper()}{title[1:]} hits (%), {READOUT_NAMES[readout]}"
+            lines += _rate_table(head, table, explainers, pairs, names, metric == "hit1")
     times = mean_times(timings)
     worlds = [*dict.fromkeys(w for w, _ in pairs), "all"]
     lines += [
@@ -174,7 +199,7 @@ def markdown_table(
         "",
         "Wall seconds per task on one torch thread, mean (and the slowest task): the search "
         "for the counterfactual; for a saliency method its maps over the failed rollout plus "
-        "the object masks they share.",
+        "the object masks they share (every readout comes from the same maps).",
         "",
         "| explainer | " + " | ".join(worlds) + " |",
         "|---|" + "---|" * len(worlds),
@@ -186,6 +211,28 @@ def markdown_table(
         ]
         lines.append(f"| {names[e]} | " + " | ".join(cols) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _rate_table(head, table, explainers, pairs, names, users: bool) -> list[str]:
+    lines = [
+        "",
+        f"## {head}",
+        "",
+        "| world | shift | n | "
+        + " | ".join(names[e] for e in explainers)
+        + (" | paper's users (CF / no CF) |" if users else " |"),
+        "|---|---|---|" + "---|" * len(explainers) + ("---|" if users else ""),
+    ]
+    for world, shift in [*pairs, *((w, "all") for w in dict.fromkeys(p[0] for p in pairs))]:
+        got = [table.get((world, shift, e), (0, 0)) for e in explainers]
+        n = max(g[1] for g in got)
+        extra = (f" {paper_users(world, shift)} |" if shift != "all" else " |") if users else ""
+        cols = " | ".join(cell(*g) for g in got)
+        lines.append(f"| {world} | {shift} | {n} | {cols} |{extra}")
+    got = [table.get(("all", "all", e), (0, 0)) for e in explainers]
+    cols = " | ".join(cell(*g) for g in got)
+    lines.append(f"| **all** | | {max(g[1] for g in got)} | {cols} |" + (" |" if users else ""))
+    return lines
 
 
 def write_table(

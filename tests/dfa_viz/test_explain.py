@@ -8,13 +8,22 @@ from dfa_viz.cli import main
 from dfa_viz.experiment.explain import (
     COLUMNS,
     EXPLAINERS,
+    READINGS,
+    SPANS,
     ExplainSettings,
     TaskSpec,
     explain_task,
     explainer_names,
+    readouts_of,
 )
 from dfa_viz.experiment.explain_figures import write_plot
-from dfa_viz.experiment.explain_results import cell, explain_folder, markdown_table
+from dfa_viz.experiment.explain_results import (
+    cell,
+    explain_folder,
+    markdown_table,
+    rates,
+    readout_rows,
+)
 from dfa_viz.experiment.explain_run import ExplainPlan, run_explain
 from sim.core import UserError
 
@@ -39,7 +48,7 @@ def test_a_tiny_benchmark_writes_the_table_the_plot_and_every_row(benchmark):
     out = benchmark.out
     assert (benchmark.planned, benchmark.skipped, benchmark.executed) == (4, 0, 4)
     rows = _rows(out / "tasks.csv")
-    assert len(rows) == 4 * len(FAST) and tuple(rows[0]) == COLUMNS
+    assert len(rows) == 4 * (2 + 3 * 4) and tuple(rows[0]) == COLUMNS  # 4 readouts per map
     assert {r["cause"] for r in rows} == {"goal.colour", "goal.shape", "distractor.presence"}
     for r in rows:
         ranked = r["ranking"].split()
@@ -47,10 +56,24 @@ def test_a_tiny_benchmark_writes_the_table_the_plot_and_every_row(benchmark):
         assert int(r["rank"]) == ranked.index(r["cause"]) + 1
     cf = [r for r in rows if r["explainer"] == "counterfactual"]
     assert all(r["hit1"] == "1" for r in cf)  # nav2d's planted causes are all found
+    for r in rows:  # the steps before divergence are some of all the steps
+        if r["explainer"] in ("counterfactual", "random"):
+            assert (r["reading"], r["span"], r["n_steps"]) == ("-", "-", "-")
+        else:
+            mate = next(
+                o
+                for o in rows
+                if o["span"] == "all"
+                and o["explainer"] == r["explainer"]
+                and (o["shift"], o["seed"]) == (r["shift"], r["seed"])
+            )
+            assert 1 <= int(r["n_steps"]) <= int(mate["n_steps"])
     table = (out / "table.md").read_text()
-    assert "Top-1 hits" in table and "97 / 28" in table and "Time per task" in table
+    assert "Object top-1 hits (%), |attribution|, all steps" in table
+    assert "Top-1 hits (%), signed, steps before the rollout diverges" in table
+    assert "97 / 28" in table and "Time per task" in table
     assert (out / "hits.png").read_bytes()[:4] == b"\x89PNG"
-    assert len(_rows(out / "timings.csv")) == len(rows)
+    assert len(_rows(out / "timings.csv")) == 4 * len(FAST)  # one per explainer and task
 
 
 def test_it_resumes_and_a_cut_line_is_run_again(benchmark, tmp_path):
@@ -76,23 +99,78 @@ def test_other_settings_do_not_mix_into_a_folder(benchmark):
         explain_folder(benchmark.out, ExplainSettings(explainers=("random",)))
 
 
+ONE = {"reading": "-", "span": "-"}
+
+
 def test_rates_are_written_with_wilson_intervals():
     assert cell(47, 50) == "94 (84–98)"
     assert cell(0, 50) == "0 (0–7)"
     assert cell(0, 0) == "—"
     row = dict.fromkeys(COLUMNS, "0") | {"world": "nav2d", "shift": "object_ti"}
-    text = markdown_table([row | {"explainer": "random"}], [], ExplainSettings())
-    assert "| nav2d | object_ti | 0 (0–79) | 97 / 28 |" in text
+    text = markdown_table([row | ONE | {"explainer": "random"}], [], ExplainSettings())
+    assert "| nav2d | object_ti | 1 | 0 (0–79) | 97 / 28 |" in text
+
+
+def test_rates_count_distinct_tasks_once():
+    row = dict.fromkeys(COLUMNS, "0") | ONE | {"world": "nav2d", "explainer": "random"}
+    # 47 seeds draw task a (a hit), three draw b, c, d (misses); TR repeats TI's tasks
+    rows = [
+        row
+        | {"shift": shift, "seed": str(s), "task_id": "a" if s < 47 else "bcd"[s - 47]}
+        | ({"object_hit1": "1"} if s < 47 else {})
+        for shift in ("object_ti", "object_tr")
+        for s in range(50)
+    ]
+    table = rates(rows, "object_hit1")
+    assert table[("nav2d", "object_ti", "random")] == (1.0, 4)  # 1 of 4 tasks, not 47 of 50
+    assert table[("nav2d", "all", "random")] == (1.0, 4)  # TI and TR tasks are the same four
+    assert cell(*table[("all", "all", "random")]) == "25 (5–70)"
+    text = markdown_table(rows, [], ExplainSettings())
+    assert "| nav2d | object_ti | 4 | 25 (5–70) |" in text
+    mixed = [*rows[:2], rows[2] | {"task_id": "a", "object_hit1": "0"}]  # a task hit 2 of 3
+    assert rates(mixed, "object_hit1")[("nav2d", "object_ti", "random")] == (2 / 3, 1)
+
+
+def test_each_readout_is_tabled_apart_beside_the_one_reading_explainers():
+    row = dict.fromkeys(COLUMNS, "0") | {"world": "nav2d", "shift": "distractor_ti"}
+    rows = [row | ONE | {"explainer": "counterfactual", "object_hit1": "1"}]
+    for reading in READINGS:
+        for span in SPANS:
+            hit = str(int(reading == "signed"))
+            rows.append(
+                row
+                | {"explainer": "occlusion", "reading": reading, "span": span}
+                | {"object_hit1": hit}
+            )
+    signed = rates(readout_rows(rows, ("signed", "before")), "object_hit1")
+    unsigned = rates(readout_rows(rows, ("abs", "all")), "object_hit1")
+    assert signed[("nav2d", "distractor_ti", "occlusion")] == (1.0, 1)
+    assert unsigned[("nav2d", "distractor_ti", "occlusion")] == (0.0, 1)
+    assert signed[("nav2d", "distractor_ti", "counterfactual")] == (1.0, 1)
+    assert readouts_of("occlusion") == tuple((r, s) for r in READINGS for s in SPANS)
+    assert readouts_of("counterfactual") == (("-", "-"),)
+
+
+def test_the_readouts_are_policy_s_own():
+    from policy import concept_saliency
+
+    assert (READINGS, SPANS) == (concept_saliency.READINGS, concept_saliency.SPANS)
 
 
 def test_the_plot_draws_rates_of_none_and_of_all(tmp_path):
     row = dict.fromkeys(COLUMNS, "0") | {"world": "doorkey", "shift": "distractor_tr"}
-    rows = [row | {"explainer": "kernel_shap", "seed": str(s)} for s in range(50)]
+    row |= {"reading": "abs", "span": "all"}
+    rows = [
+        row | {"explainer": "kernel_shap", "seed": str(s), "task_id": str(s)} for s in range(50)
+    ]
     hit = {"hit1": "1", "hit3": "1", "object_hit1": "1"}
-    rows += [row | hit | {"explainer": "counterfactual", "seed": str(s)} for s in range(50)]
+    rows += [
+        row | ONE | hit | {"explainer": "counterfactual", "seed": str(s), "task_id": str(s)}
+        for s in range(50)
+    ]
     assert write_plot(tmp_path, rows).read_bytes()[:4] == b"\x89PNG"  # 0 of 50, 50 of 50
     table = markdown_table(rows, [], ExplainSettings())
-    assert "| doorkey | distractor_tr | 100 (93–100) | 0 (0–7) | 88 / 32 |" in table
+    assert "| doorkey | distractor_tr | 50 | 100 (93–100) | 0 (0–7) | 88 / 32 |" in table
 
 
 @pytest.mark.parametrize(

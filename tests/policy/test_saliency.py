@@ -8,11 +8,19 @@ import torch
 from torch import nn
 
 from policy import ImagePolicy, Policy, PolicyConfig, base_policy, failing_test_task
-from policy.concept_saliency import concept_scores, prepare, saliency_ranking
+from policy.concept_saliency import (
+    DIVERGED,
+    before_divergence,
+    concept_scores,
+    prepare,
+    saliency_ranking,
+    saliency_readouts,
+)
 from policy.methods import METHODS
 from policy.saliency import (
     SaliencyConfig,
     attribute,
+    explained_steps,
     grad_cam_layer,
     occlusion_window,
     saliency_maps,
@@ -177,3 +185,48 @@ def test_bad_methods_and_non_finite_attributions_are_refused(nav, nav_policy):
         broken.net.head[-1].weight.fill_(float("nan"))
     with pytest.raises(UserError, match="non-finite"):
         attribute(broken, rollout.observations[:2], demo.actions[:2], "integrated_gradients")
+
+
+@pytest.mark.parametrize("method", ["integrated_gradients", "occlusion", "kernel_shap"])
+def test_the_signed_reading_blames_the_object_only_when_it_pushes_the_action_away(
+    known_cause, method
+):
+    """Explained against the policy's own action on a black frame, the object's pixels push the
+    action away from the demonstration; against its action on the frame, they pull it there.
+    The magnitude names the object either way; the signed reading blames it first only in the
+    first case (Grad-CAM's sign is its gradient-weighted activations', not a share of the
+    output, so it is not held to this)."""
+    world, slot, policy, frames, _ = known_cause
+    with torch.no_grad():
+        on_frame = policy.net.pixels(torch.from_numpy(frames.obs).float())
+        on_black = policy.net.pixels(torch.zeros(frames.obs.shape))
+    if world.discrete:  # the logit the object lowers most, or raises most
+        push, pull = (on_frame - on_black).argmin(dim=1), (on_frame - on_black).argmax(dim=1)
+    else:
+        push, pull = on_black, on_frame
+    for actions, pushes in ((push, True), (pull, False)):
+        explained = replace(frames, actions=actions.numpy())
+        readings = saliency_readouts(policy, explained, method, seed=0)
+        assert readings[("abs", "all")].groups[0] == (slot,), (method, pushes)
+        signed = readings[("signed", "all")]
+        if pushes:
+            assert signed.groups[0] == (slot,) and signed.scores[0] > 0, (method, signed)
+        else:
+            assert signed.groups[-1] == (slot,) and signed.scores[-1] < 0, (method, signed)
+
+
+def test_the_steps_before_divergence_are_those_whose_frames_are_the_demonstration_s(nav):
+    doorkey = get_world("doorkey")
+    for world in (doorkey, nav):
+        task, rollout = failing_test_task(world, base_policy(world), "object_ti", 0)
+        demo = world.demonstrate(task)
+        steps = explained_steps(rollout, demo)
+        assert before_divergence(world, demo, demo) == explained_steps(demo, demo)
+        n = before_divergence(world, rollout, demo)
+        assert 1 <= n < steps, (world.name, n)  # the failed rollout leaves the demonstration
+        frames = np.any(rollout.observations[: n + 1] != demo.observations[: n + 1], axis=-1)
+        share = frames.reshape(n + 1, -1).mean(axis=1)  # (n + 1,) pixels that differ
+        if world.discrete:
+            assert not share[:n].any() and share[n] > 0, share
+        else:
+            assert (share[:n] <= DIVERGED).all() and share[n] > DIVERGED, share
