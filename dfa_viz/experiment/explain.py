@@ -20,6 +20,14 @@ base policy):
    before the rollout leaves the demonstration ("before"); the search and the random order have
    one row (reading and span "-"). `task_id` names the task's scene and cause, so that tables
    count distinct tasks (several seeds can draw one task; TI and TR tasks share scenes).
+5. Per saliency readout, against the ground-truth mask (policy.saliency_metrics): the share of
+   the map's mass (the magnitude, or the positive blame) on the cause's pixels (`mass_cause`,
+   Quantus' relevance mass accuracy) and on pixels of no object (`mass_off`), the cause's share
+   of the pixels (`area_cause`: a uniform map's relevance mass), the deletion score of the
+   action distance with pixels deleted in the readout's order (`deletion`; the random order's
+   row: pixels in random order), and the cascading randomisation's Spearman correlations, top
+   layer first, on the first `sanity_steps` steps (`randomised`). Not timed as the
+   explainer's cost.
 The benchmark as a whole (its plan, running it, its table and plot) is explain_run.
 """
 
@@ -67,6 +75,11 @@ COLUMNS = (
     "n_concepts",
     "n_steps",
     "ranking",
+    "mass_cause",
+    "mass_off",
+    "area_cause",
+    "deletion",
+    "randomised",
 )
 KEY = COLUMNS[:6]
 TIMING_COLUMNS = (*COLUMNS[:4], "duration_s", "host")
@@ -94,6 +107,8 @@ class ExplainSettings:
     """Largest edit the counterfactual search tries."""
     saliency: dict = field(default_factory=dict)
     """policy.saliency.SaliencyConfig fields that differ from its defaults."""
+    sanity_steps: int = 8
+    """The randomisation check's steps (the first ones of the failed rollout; 0: none)."""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -135,6 +150,7 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
     from policy import failing_test_task
     from policy.concept_saliency import frame_maps, prepare, readouts
     from policy.saliency import SaliencyConfig
+    from policy.saliency_metrics import deletion_curve, deletion_score, randomised
     from search import SearchConfig, counterfactual_search
     from search.ranking import concept_ranking
     from sim import get_world
@@ -156,6 +172,9 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
         t0 = time.perf_counter()
         rankings: dict[tuple[str, str], tuple[str, ...]] = {}
         steps: dict[tuple[str, str], int | str] = {(NONE, NONE): NONE}
+        metrics: dict[tuple[str, str], dict[str, str]] = {
+            (NONE, NONE): dict.fromkeys(MASK_COLUMNS, NONE)
+        }
         if explainer == "counterfactual":
             result = counterfactual_search(
                 world,
@@ -168,6 +187,11 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
         elif explainer == "random":
             order = _rng(spec, "random-ranking").permutation(len(visible))
             rankings[(NONE, NONE)] = tuple(visible[int(i)].name for i in order)
+            if frames is None:
+                frames = prepare(world, task, rollout, demo)
+            noise = _rng(spec, "random-deletion").random(frames.masks.shape[1:])
+            curve = deletion_curve(policy, frames.obs, frames.actions, noise)
+            metrics[(NONE, NONE)]["deletion"] = _number(deletion_score(curve))
         else:
             if frames is None:
                 frames = prepare(world, task, rollout, demo)
@@ -180,6 +204,20 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
                 steps[key] = frames.steps(key[1])
             t0 -= frames_s  # the masks are part of every saliency method's cost
         duration = time.perf_counter() - t0
+        if explainer not in ("counterfactual", "random"):
+            n = min(settings.sanity_steps, len(frames.obs))
+            rho = randomised(
+                policy,
+                frames.obs[:n],
+                frames.actions[:n],
+                explainer,
+                features=frames.features[:n] if explainer == "kernel_shap" else None,
+                seed=seed,
+                config=config,
+            )
+            for key in rankings:
+                metrics[key] = _against_the_mask(frames, cause, unsigned, signed, *key, policy)
+                metrics[key]["randomised"] = " ".join(_number(r) for r in rho[key[0]])
         assert tuple(rankings) == readouts_of(explainer), "readouts and readouts_of disagree"
         for (reading, span), ranking in rankings.items():
             rank = ranking.index(cause) + 1 if cause in ranking else 0
@@ -200,6 +238,7 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
                 "n_concepts": len(visible),
                 "n_steps": steps[(reading, span)],
                 "ranking": " ".join(ranking),
+                **metrics[(reading, span)],
             }
             assert tuple(row) == COLUMNS, "row and COLUMNS disagree"
             rows.append({k: str(v) for k, v in row.items()})
@@ -211,3 +250,32 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
             }
         )
     return {"rows": rows, "timings": timings}
+
+
+MASK_COLUMNS = COLUMNS[COLUMNS.index("mass_cause") :]
+"""The columns measured against the ground-truth mask ("-" where an explainer has no map)."""
+
+
+def _number(x: float) -> str:
+    return "nan" if x != x else f"{x:.4f}"
+
+
+def _against_the_mask(frames, cause: str, unsigned, signed, reading, span, policy) -> dict:
+    """One readout's mass on the cause and off every object, and its deletion score."""
+    import numpy as np
+
+    from policy.concept_saliency import reading_map
+    from policy.saliency_metrics import deletion_curve, deletion_score, relevance_mass
+
+    n = frames.steps(span)
+    k = [c.name for c in frames.concepts].index(cause)
+    score = reading_map(unsigned, signed, reading)[:n]  # (n, H, W): magnitude or blame
+    mass = np.clip(score, 0, None)
+    curve = deletion_curve(policy, frames.obs[:n], frames.actions[:n], score)
+    return {
+        "mass_cause": _number(relevance_mass(mass, frames.masks[k, :n])),
+        "mass_off": _number(relevance_mass(mass, frames.features[:n] == 0)),
+        "area_cause": _number(float(frames.masks[k, :n].mean())),
+        "deletion": _number(deletion_score(curve)),
+        "randomised": NONE,
+    }

@@ -36,7 +36,7 @@ from dfa_viz.experiment.explain import (
     readouts_of,
 )
 from dfa_viz.experiment.folder import ResultsFolder
-from search.stats import wilson
+from search.stats import t_interval, wilson
 from sim import PAPER_WORLDS
 from sim.core import files
 
@@ -191,6 +191,7 @@ def markdown_table(
             table = rates(readout_rows(rows, readout), metric)
             head = f"{title[0].upper()}{title[1:]} hits (%), {READOUT_NAMES[readout]}"
             lines += _rate_table(head, table, explainers, pairs, names, metric == "hit1")
+    lines += mask_table(rows, explainers, pairs, names, settings)
     times = mean_times(timings)
     worlds = [*dict.fromkeys(w for w, _ in pairs), "all"]
     lines += [
@@ -232,6 +233,90 @@ def _rate_table(head, table, explainers, pairs, names, users: bool) -> list[str]
     got = [table.get(("all", "all", e), (0, 0)) for e in explainers]
     cols = " | ".join(cell(*g) for g in got)
     lines.append(f"| **all** | | {max(g[1] for g in got)} | {cols} |" + (" |" if users else ""))
+    return lines
+
+
+def task_means(
+    rows: Iterable[Mapping[str, str]], column: str
+) -> dict[tuple[str, str, str, str], list[float]]:
+    """(world, explainer, reading, span) -> one value per distinct task of a numeric column:
+    the mean over the task's rows (nan and "-" left out); the randomisation column reads its
+    last correlation (every layer re-initialised) and, as column "randomised_top", its first."""
+    got: dict[tuple, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in rows:
+        text = r[column if column != "randomised_top" else "randomised"]
+        if text == NONE:
+            continue
+        values = text.split()
+        value = float(values[0] if column == "randomised_top" else values[-1])
+        if value == value:
+            key = (r["world"], r["explainer"], r["reading"], r["span"])
+            got[key][r["task_id"]].append(value)
+    return {k: [sum(v) / len(v) for v in tasks.values()] for k, tasks in got.items()}
+
+
+MASK_METRICS = {
+    "mass_cause": "mass on the cause",
+    "area_cause": "the cause's area",
+    "mass_off": "mass off every object",
+    "deletion": "deletion",
+    "randomised_top": "ρ, head random",
+    "randomised": "ρ, all random",
+}
+
+
+def mask_table(rows, explainers, pairs, names, settings: ExplainSettings) -> list[str]:
+    """Per world and readout, each saliency method's means over distinct tasks of the checks
+    against the ground-truth mask (explain.MASK_COLUMNS), 95% t intervals for the mass."""
+    means = {m: task_means(rows, m) for m in MASK_METRICS}
+    maps = [
+        e for e in explainers if any(r["explainer"] == e and r["reading"] != NONE for r in rows)
+    ]
+    lines = [
+        "",
+        "## Against the ground-truth mask",
+        "",
+        "Means over distinct tasks (95% t interval for the mass on the cause, clipped to "
+        "0–1). *Mass on the cause*: Quantus' relevance mass accuracy, the share of the map's "
+        "mass (the magnitude; for the signed reading the positive blame, what pushes the "
+        "action away) on the planted cause's pixels; *the cause's area*: its share of the "
+        "pixels, what a uniform map scores. *Mass off every object*: on pixels of no object "
+        "(background, walls and the agent, which no world marks). *Deletion*: the action "
+        "distance to the demonstration with 1/64 .. 1/4 of each frame's pixels set black in "
+        "the readout's order, over the distance on the whole frames (below 1: deleting what "
+        "the map points at brings the action closer; the random order's row deletes pixels at"
+        " random). *ρ*: Spearman's correlation between the map and the map of the policy with"
+        " its top layer (head random) or every layer (all random) re-initialised, on the "
+        "first "
+        f"{settings.sanity_steps} steps, over the pixels either map gives a non-zero value "
+        "(near 1: the map does not depend on what the policy learned).",
+        "",
+        "| world | explainer | reading | steps | n | " + " | ".join(MASK_METRICS.values()) + " |",
+        "|---|---|---|---|---|" + "---|" * len(MASK_METRICS),
+    ]
+    for world in dict.fromkeys(w for w, _ in pairs):
+        for e in [*maps, "random"]:
+            for readout in READOUTS if e != "random" else ((NONE, NONE),):
+                key = (world, e, *readout)
+                n = len(means["deletion"].get(key, []))
+                if n == 0:
+                    continue
+                cols = []
+                for m in MASK_METRICS:
+                    values = means[m].get(key, [])
+                    if not values:
+                        cols.append("—")
+                    elif m == "mass_cause":
+                        mean, lo, hi = t_interval(values)  # a share: clipped to [0, 1]
+                        cols.append(f"{mean:.2f} ({max(lo, 0.0):.2f}–{min(hi, 1.0):.2f})")
+                    else:
+                        cols.append(f"{sum(values) / len(values):.2f}")
+                reading, span = readout
+                lines.append(
+                    f"| {world} | {names[e]} | {reading} | {span} | {n} | "
+                    + " | ".join(cols)
+                    + " |"
+                )
     return lines
 
 

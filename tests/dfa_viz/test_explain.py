@@ -8,6 +8,7 @@ from dfa_viz.cli import main
 from dfa_viz.experiment.explain import (
     COLUMNS,
     EXPLAINERS,
+    MASK_COLUMNS,
     READINGS,
     SPANS,
     ExplainSettings,
@@ -29,7 +30,9 @@ from sim.core import UserError
 
 PLAN = ExplainPlan(worlds=("nav2d",), shifts=("object_ti", "distractor_ti"), tasks=2)
 FAST = ("counterfactual", "integrated_gradients", "grad_cam", "kernel_shap", "random")
-SETTINGS = ExplainSettings(explainers=FAST, saliency={"ig_steps": 8, "shap_samples": 16})
+SETTINGS = ExplainSettings(
+    explainers=FAST, saliency={"ig_steps": 8, "shap_samples": 16}, sanity_steps=2
+)
 
 
 def _rows(path):
@@ -68,7 +71,19 @@ def test_a_tiny_benchmark_writes_the_table_the_plot_and_every_row(benchmark):
                 and (o["shift"], o["seed"]) == (r["shift"], r["seed"])
             )
             assert 1 <= int(r["n_steps"]) <= int(mate["n_steps"])
+    for r in rows:  # the checks against the mask: shares, a deletion score, 5 correlations
+        if r["explainer"] == "counterfactual":
+            assert all(r[c] == "-" for c in MASK_COLUMNS), r
+        elif r["explainer"] == "random":
+            assert float(r["deletion"]) > 0 and r["mass_cause"] == "-", r
+        else:
+            assert 0 < float(r["area_cause"]) < 0.1, r  # nav2d's objects are small
+            shares = [float(r[c]) for c in ("mass_cause", "mass_off")]  # nan: no mass to share
+            assert all(0 <= x <= 1 or (x != x and r["reading"] == "signed") for x in shares), r
+            rho = [float(x) for x in r["randomised"].split()]
+            assert len(rho) == 5 and all(-1 <= x <= 1 for x in rho), r
     table = (out / "table.md").read_text()
+    assert "## Against the ground-truth mask" in table
     assert "Object top-1 hits (%), |attribution|, all steps" in table
     assert "Top-1 hits (%), signed, steps before the rollout diverges" in table
     assert "97 / 28" in table and "Time per task" in table
