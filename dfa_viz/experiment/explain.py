@@ -107,7 +107,7 @@ class ExplainSettings:
     """Largest edit the counterfactual search tries."""
     saliency: dict = field(default_factory=dict)
     """policy.saliency.SaliencyConfig fields that differ from its defaults."""
-    sanity_steps: int = 8
+    sanity_steps: int = 4
     """The randomisation check's steps (the first ones of the failed rollout; 0: none)."""
 
     def to_dict(self) -> dict:
