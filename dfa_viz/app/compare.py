@@ -71,6 +71,7 @@ class ComparePanel:
                 series,
                 scales=scales,
                 axes=plots.DISTANCE_AXES,
+                legend=plots.LEGEND,
                 title="action distance to the demonstration",
                 aspect=2.0,
             )
@@ -203,7 +204,7 @@ class ComparePanel:
                 if one_step:
                     self._draw_bars(view, traces, force=force)
                 else:
-                    if len(self.trace.series) != len(series) or force:
+                    if self.trace.series != series or force:  # labels carry the step's values
                         self.trace.series = series
                     self.trace.scales = scales
                     self.trace.data = data

@@ -18,7 +18,10 @@ def distance_plot(
     step: int,
 ):
     """Distances of each named rollout to the demonstration over steps, the search's bound,
-    and "now", a vertical line at `step` (the slider's step).
+    and a vertical line at `step` (the slider's step).
+
+    Each label carries its series' value at that step ("failed 0.42", "step 7"): the legend is
+    static (LEGEND), so hovering shows no value that is not a number where the line is absent.
 
     The line is drawn as its own series over a repeated x value: x is 0, 1, ..., step, step,
     ..., T-1 with every other series repeating its value there, and "now" set only at the two
@@ -36,24 +39,33 @@ def distance_plot(
             d = distance_to_demo(world, traj, demo)
             top = max(top, float(np.nanmax(d, initial=0.0)))
             lines.append(d)
-            series.append({"label": name, "stroke": COLOURS.get(name, "#495057"), "width": 2})
+            label = f"{name} {d[t]:.2f}" if np.isfinite(d[t]) else name
+            series.append({"label": label, "stroke": COLOURS.get(name, "#495057"), "width": 2})
         if not world.discrete and world.epsilon > 0:
             lines.append(np.full(horizon, world.epsilon))
             series.append(
-                {"label": "ε", "stroke": COLOURS["epsilon"], "width": 1, "dash": (4.0, 4.0)}
+                {
+                    "label": f"ε {world.epsilon:g}",
+                    "stroke": COLOURS["epsilon"],
+                    "width": 1,
+                    "dash": (4.0, 4.0),
+                }
             )
     top = round(top * 1.1, 3)
     at = np.insert(np.arange(horizon), t + 1, t)  # (T + 1,) index t twice
     now = np.full(horizon + 1, np.nan)
     now[t], now[t + 1] = 0.0, top
     data = (x[at], *(v[at] for v in lines), now)
-    series.append({"label": "now", "stroke": COLOURS["step"], "width": 1.5})
+    series.append({"label": f"step {t}", "stroke": COLOURS["step"], "width": 1.5})
     scales: dict[str, uplot.Scale] = {
         "x": {"time": False, "auto": False, "range": (-0.5, horizon - 0.5)},
         "y": {"auto": False, "range": (0.0, top)},
     }
     return data, tuple(series), scales
 
+
+LEGEND: uplot.Legend = {"live": False}
+"""The distance plot's legend: labels only (they carry the slider's step's values)."""
 
 DISTANCE_AXES: tuple[uplot.Axis, ...] = (
     {"label": "step", "incrs": (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)},

@@ -68,6 +68,12 @@ def test_nav2d_loop_by_clicks(serve_app, ui, shots):
         lambda: np.abs(_agent_in_3d_view(page) - agent_at_start).max() > 5,
         what="the 3D view to follow the slider",
     )
+    legend = page.locator(".u-legend").first  # the distance plot's: values at the slider's step
+    expect(legend).to_contain_text("step 8")
+    expect(legend).to_contain_text("counterfactual")
+    plot = page.locator(".u-over").first.bounding_box()
+    page.mouse.move(plot["x"] + 0.8 * plot["width"], plot["y"] + plot["height"] / 2)
+    expect(legend).not_to_contain_text("NaN")  # hovering away from the step's line
     page.screenshot(path=shots / "2-diagnosis.png")
     page.get_by_role("button", name="step ▶").click()
     expect(slider).to_have_attribute("aria-valuenow", "9")
