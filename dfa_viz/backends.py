@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -118,6 +119,22 @@ def run_local(
     return done
 
 
+RAY_LOOPBACK = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+"""Ray's own switch (read when ray is imported): "0" keeps every address Ray gives this
+machine's nodes and driver at 127.0.0.1, where it binds its servers to loopback only. Without
+it Ray 2.60 swaps 127.0.0.1 and localhost, given as a node's or a cluster's address, for the
+machine's routable address, and binds to every interface."""
+
+
+def on_loopback(address: str | None) -> bool:
+    """Whether Ray should stay on 127.0.0.1: an instance started here (None), or a cluster
+    reached at a loopback address (127.x.x.x, localhost)."""
+    if address is None:
+        return True
+    host = address.removeprefix("ray://").rpartition(":")[0].strip("[]")
+    return host == "localhost" or host.startswith("127.")
+
+
 def run_ray(
     fn: Job,
     items: Sequence[Any],
@@ -129,12 +146,15 @@ def run_ray(
 ) -> int:
     """Run every item as a Ray task (one CPU each); returns how many ran.
 
-    address: an existing cluster ("auto" or "ray://host:port"); None starts a local Ray
-        instance with `workers` CPUs on this machine (and stops it afterwards). When Ray is
-        already initialised in this process, that instance is used and left running.
+    address: an existing cluster (its head's "host:port", "auto" or "ray://host:port"); None
+        starts a local Ray instance with `workers` CPUs on this machine, bound to 127.0.0.1
+        (and stops it afterwards). When Ray is already initialised in this process, that
+        instance is used and left running.
     Each node needs the project installed and its base policies cached (or it trains them,
     deterministically, on first use).
     """
+    if on_loopback(address) and "ray" not in sys.modules:
+        os.environ.setdefault(RAY_LOOPBACK, "0")
     try:
         import ray
     except ImportError:

@@ -22,10 +22,12 @@ class SweepArgs:
     --sizes 1 2, pairs of the edits that move the policy most, and those that fail more often
     than both alone.
 
-    Writes OUT/sweep.csv, OUT/heatmap.png (failure rate, slot.concept x value) and
-    OUT/sweep.rrd (the heatmap, a bar chart per concept, the worst edited rollouts beside the
-    unedited ones), and prints the ranking. The same tasks give the same files on every
-    backend. `dfa serve` has the same sweep in its Sweep tab, a click loading a failure.
+    Appends each unit of work's result to OUT/results.jsonl as it finishes (one JSON line,
+    fsynced); --resume runs only the units not yet there. Then writes OUT/sweep.csv,
+    OUT/heatmap.png (failure rate, slot.concept x value) and OUT/sweep.rrd (the heatmap, a bar
+    chart per concept, the worst edited rollouts beside the unedited ones), and prints the
+    ranking. The same tasks give the same files on every backend, resumed or not. `dfa serve`
+    has the same sweep in its Sweep tab, a click loading a failure.
     """
 
     world: str = "nav2d"
@@ -42,15 +44,20 @@ class SweepArgs:
     workers: int = 1
     """Units of work side by side (1: in this process; more: a process pool or Ray CPUs)."""
     backend: Literal["local", "ray"] = "local"
-    """local (processes on this machine) or ray (pip install 'dfa[ray]')."""
+    """local (processes on this machine) or ray (pip install 'dfa[ray]'): a Ray instance with
+    WORKERS CPUs started here, bound to 127.0.0.1, or the cluster at --address."""
+    address: str | None = None
+    """With --backend ray: an existing Ray cluster to run on (host:port of its head, "auto",
+    ray://host:10001); its CPUs, not --workers, say how many units run at once."""
+    resume: bool = False
+    """Go on from OUT/results.jsonl, as a stopped sweep with the same options left it,
+    running only the units not yet in it (without it: start afresh, replacing that file)."""
     out: Path | None = None
     """The folder for the files; when left out, recordings/sweep/<world>."""
     worst: int = 4
     """Edited rollouts shown in the recording, beside their unedited ones."""
     pair_cells: int = 32
     """With pairs: the edits paired, those that move the policy most."""
-    ray_address: str | None = None
-    """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
     progress: bool = True
     """Show a progress bar."""
 

@@ -1,14 +1,17 @@
 """`dfa sweep`: the sweep (search.sweep) run on the backends with a progress bar, and its
-outputs written: sweep.csv, heatmap.png, sweep.rrd, and a table in the terminal.
+outputs written: results.jsonl (each unit's result as it finishes: dfa_viz.sweep.journal),
+sweep.csv, heatmap.png, sweep.rrd, and a table in the terminal.
 
 A unit of work travels to a worker as itself (its tasks and, for pairs, its cells); the
 policy travels by name (`SweepJob`): the base policy, or a spec policy.outside.load reads.
 Units are fixed by the tasks alone and their results put in order by unit, so every backend
-and any number of workers give the same result.
+and any number of workers give the same result, and a sweep resumed from its results file the
+result of one never stopped.
 """
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -17,6 +20,7 @@ from pathlib import Path
 from dfa_viz.checked_policy import checked_policy
 from dfa_viz.sweep.args import SweepArgs
 from dfa_viz.sweep.figures import Heatmap
+from dfa_viz.sweep.journal import RESULTS, Journal, kind
 from search.sweep import (
     SweepProgress,
     SweepResult,
@@ -55,19 +59,20 @@ def backend_runner(
     backend: str = "local",
     workers: int = 1,
     ray_address: str | None = None,
-    on_unit: Callable[[str, UnitResult], None] | None = None,
+    on_unit: Callable[[Unit, UnitResult], None] | None = None,
 ) -> Callable[[Sequence[Unit]], list[UnitResult]]:
     """A search.sweep Runner on a backend (one worker: here, with one torch thread, as in a
-    worker); on_unit(what, result) as each unit finishes, what being "singles" or "pairs"."""
+    worker); on_unit(unit, result) as each unit finishes, in the process that runs the sweep."""
     from dfa_viz.backends import run_all
 
     def runner(units: Sequence[Unit]) -> list[UnitResult]:
         done: list[UnitResult] = []
+        by_index = {u.index: u for u in units}
 
         def on_result(result: UnitResult) -> None:
             done.append(result)
             if on_unit is not None:
-                on_unit("pairs" if units[result.unit].pairs else "singles", result)
+                on_unit(by_index[result.unit], result)
 
         run_all(
             run_unit_job,
@@ -120,13 +125,28 @@ def check(args: SweepArgs, world: World) -> None:
         raise UserError(f"--worst must not be negative, got {args.worst}")
     if args.workers < 1:
         raise UserError(f"--workers must be at least 1, not {args.workers}")
+    if args.address is not None and args.backend != "ray":
+        raise UserError("--address names a Ray cluster: give it with --backend ray")
+
+
+def header(args: SweepArgs, world: World) -> dict:
+    """What makes a sweep's units what they are: its results file's first line."""
+    return {
+        "world": world.name,
+        "policy": args.policy,
+        "tasks": args.tasks,
+        "seed": args.seed,
+        "sizes": sorted(set(args.sizes)),
+        "pair_cells": args.pair_cells if 2 in args.sizes else None,
+    }
 
 
 def run_sweep(args: SweepArgs) -> SweepOutput:
-    """Sweep, then write OUT/sweep.csv, OUT/heatmap.png and OUT/sweep.rrd, together: the table
-    and the picture wait in temporary files until the recording is in place, so that a run
-    cut short (a killed process, a full disk) leaves the last whole set as it was. A sweep
-    starts afresh each time."""
+    """Sweep, appending each unit's result to OUT/results.jsonl as it finishes (with --resume:
+    only the units not yet there), then write OUT/sweep.csv, OUT/heatmap.png and OUT/sweep.rrd,
+    together: the table and the picture wait in temporary files until the recording is in
+    place, so that a run cut short (a killed process, a full disk) leaves the last whole set as
+    it was. A results file whose last line was cut short: one line on stderr."""
     from sim import get_world
 
     world = get_world(args.world)
@@ -136,25 +156,34 @@ def run_sweep(args: SweepArgs) -> SweepOutput:
     tasks = sweep_tasks(world, args.tasks, args.seed)
     name = args.policy or "base policy"
     job = SweepJob(world.name, args.policy)
+    if args.resume:
+        journal = Journal.resume(out / RESULTS, header(args, world))
+        if journal.note is not None:
+            print(f"dfa: note: {journal.note}", file=sys.stderr)
+    else:
+        journal = Journal.start(out / RESULTS, header(args, world))
 
     from tqdm import tqdm
 
     bar = tqdm(total=0, desc="sweep", unit="unit", disable=not args.progress, leave=False)
 
-    def on_unit(what: str, result: UnitResult) -> None:
-        bar.set_postfix_str(f"{what}: {result.rollouts} rollouts", refresh=False)
+    def on_unit(unit: Unit, result: UnitResult) -> None:
+        journal.add(unit, result)
+        bar.set_postfix_str(f"{kind(unit)}: {result.rollouts} rollouts", refresh=False)
         bar.update(1)
 
     def counted(units: Sequence[Unit]) -> list[UnitResult]:
+        found = {u.index: journal.get(u) for u in units}
+        kept = [r for r in found.values() if r is not None]
         bar.total += len(units)
-        bar.refresh()
-        return inner(units)
+        bar.update(len(kept))
+        return sorted(kept + inner([u for u in units if found[u.index] is None]), key=_unit)
 
     inner = backend_runner(
         job,
         backend=args.backend,
         workers=args.workers,
-        ray_address=args.ray_address,
+        ray_address=args.address,
         on_unit=on_unit,
     )
     t0 = time.perf_counter()
@@ -183,6 +212,10 @@ def run_sweep(args: SweepArgs) -> SweepOutput:
         png_tmp.write_bytes(png_bytes(picture.image))
         write_sweep_recording(rrd, world, policy, result, heatmap=picture, worst=args.worst)
     return SweepOutput(result, out, csv, png, rrd, wall_s)
+
+
+def _unit(result: UnitResult) -> int:
+    return result.unit
 
 
 PAGE_MAX_TASKS = 500
