@@ -217,3 +217,30 @@ def test_the_saliency_explainers_are_policy_methods_with_their_names():
     names = explainer_names()
     assert {m: names[m] for m in METHODS} == METHOD_NAMES
     assert set(names) == set(EXPLAINERS)
+
+
+def test_a_readout_chosen_on_one_half_of_the_tasks_scores_the_other():
+    from dfa_viz.experiment.explain_results import held_out
+
+    row = dict.fromkeys(COLUMNS, "0") | {"world": "nav2d", "shift": "distractor_ti"}
+
+    def rows(hits):  # hits(task, readout) -> 0 / 1; tasks "0" .. "3", halves by parity
+        return [
+            row
+            | {"explainer": "occlusion", "reading": r, "span": s, "task_id": t, "seed": t}
+            | {"object_hit1": str(hits(int(t), (r, s)))}
+            for t in "0123"
+            for r in READINGS
+            for s in SPANS
+        ]
+
+    everywhere, picks = held_out(rows(lambda t, ro: int(ro == ("signed", "all"))))
+    assert picks[("nav2d", "occlusion")] == [("signed", "all")] * 2
+    assert rates(everywhere, "object_hit1")[("nav2d", "all", "occlusion")] == (4.0, 4)
+    # each half's own best readout misses on the other half: held out, nothing is hit
+    split, picks = held_out(
+        rows(lambda t, ro: int(ro == (("abs", "all"), ("signed", "all"))[t % 2]))
+    )
+    assert picks[("nav2d", "occlusion")] == [("signed", "all"), ("abs", "all")]
+    assert rates(split, "object_hit1")[("nav2d", "all", "occlusion")] == (0.0, 4)
+    assert {r["reading"] for r in split} == {"chosen"}
