@@ -153,29 +153,10 @@ def run_ray(
     Each node needs the project installed and its base policies cached (or it trains them,
     deterministically, on first use).
     """
-    if on_loopback(address) and "ray" not in sys.modules:
-        os.environ.setdefault(RAY_LOOPBACK, "0")
-    try:
-        import ray
-    except ImportError:
-        raise UserError(
-            "--backend ray needs Ray: pip install 'dfa[ray]' (or pip install 'ray>=2.9')"
-        ) from None
     _check_workers(workers)
     if not items:
         return 0
-    started = False
-    if not ray.is_initialized():
-        env = {k: os.environ[k] for k in ("MUJOCO_GL", "DFA_CACHE") if k in os.environ}
-        ray.init(
-            address=address,
-            num_cpus=workers if address is None else None,
-            include_dashboard=False,
-            log_to_driver=False,
-            runtime_env={"env_vars": env} if env else None,
-        )
-        started = True
-    try:
+    with ray_instance(workers, address) as ray:
         task = ray.remote(num_cpus=1, max_retries=2)(run_job)
         shared_ref = ray.put(shared)
         pending = [task.remote(fn, item, shared_ref) for item in items]
@@ -185,9 +166,36 @@ def run_ray(
             on_result(ray.get(finished[0]))
             done += 1
         return done
+
+
+@contextlib.contextmanager
+def ray_instance(workers: int, address: str | None = None) -> Iterator[Any]:
+    """Ray, initialised for the block (the `ray` module): joined to the cluster at `address`,
+    or a local instance with `workers` CPUs bound to 127.0.0.1 (see RAY_LOOPBACK), shut down
+    afterwards; already initialised in this process: that instance, left running."""
+    if on_loopback(address) and "ray" not in sys.modules:
+        os.environ.setdefault(RAY_LOOPBACK, "0")
+    try:
+        import ray
+    except ImportError:
+        raise UserError(
+            "--backend ray needs Ray: pip install 'dfa[ray]' (or pip install 'ray>=2.9')"
+        ) from None
+    if ray.is_initialized():
+        yield ray
+        return
+    env = {k: os.environ[k] for k in ("MUJOCO_GL", "DFA_CACHE") if k in os.environ}
+    ray.init(
+        address=address,
+        num_cpus=workers if address is None else None,
+        include_dashboard=False,
+        log_to_driver=False,
+        runtime_env={"env_vars": env} if env else None,
+    )
+    try:
+        yield ray
     finally:
-        if started:
-            ray.shutdown()
+        ray.shutdown()
 
 
 def run_all(

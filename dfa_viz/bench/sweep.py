@@ -2,28 +2,37 @@
 bound (the frames the sweep put through the policy, at the policy's batched throughput
 measured in the same run). Both are timed warm, the best of `repeats` (the bound's forward
 pass runs once before its clock starts; the sweep's first run pays the imports and the
-policy's first batches)."""
+policy's first batches).
+
+Where a world's sweep is measured on more than one backend, its rollouts per second per core:
+in one process against its forward-pass bound's, on 2 worker processes and on Ray against one
+process's, all measured in the same run (1.0x: every core as fast as the one process)."""
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 from dfa_viz.bench.timing import best_of
 
-# world -> (tasks, the issue's target in seconds on 2 cores, or None, workers measured)
-SWEPT: dict[str, tuple[int, float | None, tuple[int, ...]]] = {
-    "nav2d": (100, 10.0, (1,)),
-    "doorkey": (100, None, (1,)),
-    "tabletop": (100, 120.0, (1, 2)),
+Run = tuple[str, int]  # (backend, workers): ("local", 1) is in this process
+# world -> (tasks, the issue's target in seconds on 2 cores, or None, the runs measured)
+SWEPT: dict[str, tuple[int, float | None, tuple[Run, ...]]] = {
+    "nav2d": (100, 10.0, (("local", 1),)),
+    "doorkey": (100, None, (("local", 1),)),
+    "tabletop": (100, 120.0, (("local", 1), ("local", 2), ("ray", 2))),
 }
 BATCH = 512  # the sweep's rollouts per unit: the batch its forward passes see
 
 
-def bench_sweep(name: str, *, tasks: int = 100, workers: int = 1, repeats: int = 1) -> dict:
+def bench_sweep(
+    name: str, *, tasks: int = 100, workers: int = 1, repeats: int = 1, backend: str = "local"
+) -> dict:
     """Wall time of the whole single-edit sweep over `tasks` training tasks (policy loaded,
-    one torch thread per worker: here with one worker, else a process pool), and the
+    one torch thread per worker: here with one worker, else a process pool, or on Ray a local
+    instance with `workers` CPUs, started before the clock and kept over the repeats), and the
     forward-pass bound of the frames it evaluated."""
-    from dfa_viz.backends import one_torch_thread
+    from dfa_viz.backends import one_torch_thread, ray_instance
     from dfa_viz.checked_policy import checked_policy
     from dfa_viz.sweep.run import SweepJob, backend_runner
     from search.sweep import sweep, sweep_tasks
@@ -32,8 +41,11 @@ def bench_sweep(name: str, *, tasks: int = 100, workers: int = 1, repeats: int =
     world = get_world(name)
     policy = checked_policy(name, None)
     todo = sweep_tasks(world, tasks)
-    runner = backend_runner(SweepJob(name), workers=workers)
-    wall_s, result = best_of(lambda: sweep(world, policy, todo, runner=runner), repeats)
+    runner = backend_runner(SweepJob(name), workers=workers, backend=backend)
+    with contextlib.ExitStack() as stack:
+        if backend == "ray":
+            stack.enter_context(ray_instance(workers))
+        wall_s, result = best_of(lambda: sweep(world, policy, todo, runner=runner), repeats)
     scenes = [t.scene for t in todo[:1]] * BATCH
     frames = world.render_batch(scenes)  # (BATCH, H, W, 3)
     with one_torch_thread():
@@ -54,20 +66,26 @@ def bench_sweep(name: str, *, tasks: int = 100, workers: int = 1, repeats: int =
         "bound_s": bound_s,
         "to_bound": wall_s / bound_s,
         "workers": workers,
+        "backend": backend,
+        "per_core_s": result.rollouts / wall_s / workers,  # type: ignore[attr-defined]
+        "bound_per_core_s": result.rollouts / (bound_s * workers),  # type: ignore[attr-defined]
     }
 
 
 def sweep_rows(name: str, *, repeats: int = 1) -> list[tuple[str, str, str, bool | None]]:
-    """(what, value, target, met) for each worker count measured, the best of `repeats`."""
-    tasks, target, counts = SWEPT[name]
+    """(what, value, target, met) for each run measured, the best of `repeats`; with more than
+    one run, then the rollouts per second per core of each (per_core_rows)."""
+    tasks, target, runs = SWEPT[name]
     rows = []
-    for workers in counts:
-        r = bench_sweep(name, tasks=tasks, workers=workers, repeats=repeats)
-        who = "in one process" if workers == 1 else f"on {workers} worker processes"
+    measured = []
+    for backend, workers in runs:
+        r = bench_sweep(name, tasks=tasks, workers=workers, repeats=repeats, backend=backend)
+        measured.append(r)
         rows.append(
             (
                 f"{name}: `dfa sweep`, every single edit over {r['tasks']} training tasks "
-                f"({r['distinct']} distinct, {r['cells']} edits, {r['rollouts']} rollouts) {who}",
+                f"({r['distinct']} distinct, {r['cells']} edits, {r['rollouts']} rollouts) "
+                f"{_where(r)}",
                 f"{r['wall_s']:.1f} s",
                 "" if target is None else f"<= {target:g} s",
                 None if target is None else r["wall_s"] <= target,
@@ -79,6 +97,38 @@ def sweep_rows(name: str, *, repeats: int = 1) -> list[tuple[str, str, str, bool
                 f"{r['forward_per_s']:.0f} frames/s through the policy per worker: "
                 f"{r['bound_s']:.2f} s)",
                 f"{r['to_bound']:.1f}x",
+                "",
+                None,
+            )
+        )
+    return rows + (per_core_rows(name, measured) if len(measured) > 1 else [])
+
+
+def _where(r: dict) -> str:
+    if r["backend"] == "ray":
+        return f"on Ray ({r['workers']} CPUs of a local instance)"
+    return "in one process" if r["workers"] == 1 else f"on {r['workers']} worker processes"
+
+
+def per_core_rows(name: str, measured: list[dict]) -> list[tuple[str, str, str, bool | None]]:
+    """The sweep's rollouts per second per core of each run: the first (one process) against
+    its forward-pass bound's, the others against the first's."""
+    one = measured[0]
+    rows: list[tuple[str, str, str, bool | None]] = [
+        (
+            f"{name}: sweep rollouts per second per core {_where(one)}: {one['per_core_s']:.0f}"
+            f"/s vs its forward-pass bound's {one['bound_per_core_s']:.0f}/s",
+            f"{one['per_core_s'] / one['bound_per_core_s']:.3f}x",
+            "",
+            None,
+        )
+    ]
+    for r in measured[1:]:
+        rows.append(
+            (
+                f"{name}: sweep rollouts per second per core {_where(r)}: "
+                f"{r['per_core_s']:.0f}/s vs {one['per_core_s']:.0f}/s in one process",
+                f"{r['per_core_s'] / one['per_core_s']:.2f}x",
                 "",
                 None,
             )

@@ -173,3 +173,19 @@ def test_a_two_node_ray_cluster_gives_the_same_files(whole, cluster, tmp_path):
         timeout=60,
     )
     assert nodes.stdout.strip() == "2", nodes.stderr[-2000:]
+
+
+def test_the_bench_reports_rollouts_per_second_per_core_against_a_baseline():
+    """One process against its forward-pass bound's rate, the others against one process's."""
+    from dfa_viz.bench.sweep import SWEPT, per_core_rows
+
+    assert {run for run in SWEPT["tabletop"][2]} == {("local", 1), ("local", 2), ("ray", 2)}
+    runs = [
+        {"backend": "local", "workers": 1, "per_core_s": 100.0, "bound_per_core_s": 400.0},
+        {"backend": "local", "workers": 2, "per_core_s": 90.0},
+        {"backend": "ray", "workers": 2, "per_core_s": 80.0},
+    ]
+    rows = per_core_rows("tabletop", runs)
+    assert [r[1] for r in rows] == ["0.250x", "0.90x", "0.80x"]
+    assert "in one process" in rows[0][0] and "400/s" in rows[0][0]
+    assert "2 worker processes" in rows[1][0] and "on Ray" in rows[2][0]
