@@ -20,7 +20,7 @@ from policy.evaluate import DRAWN
 from policy.methods import check_method
 from policy.outside import chosen_policy
 from policy.saliency import check_explainable
-from policy.train import base_config, training_tasks
+from policy.train import base_steps, training_tasks
 from search import SearchConfig
 from search.prior import LearnedPrior
 from sim import get_world
@@ -92,7 +92,7 @@ def train_base(name: str, *, seed: int = 0, retrain: bool = False) -> tuple[Path
     folder it is kept in and its success on the training tasks."""
     world = get_world(name)
     check_seed(seed)
-    bar = tqdm(desc=f"training {name}", unit="step", leave=False, total=base_config(world).steps)
+    bar = tqdm(desc=f"training {name}", unit="step", leave=False, total=base_steps(world))
     policy = base_policy(world, seed=seed, retrain=retrain, on_loss=lambda s, loss: bar.update(1))
     bar.close()
     tasks = training_tasks(world, seed)
@@ -188,7 +188,7 @@ def _policy(args: RunArgs, world: World, phase: Phases, progress: bool):
         return chosen_policy(world, args.policy, args.weights)
     phase(f"the base policy of {world.name} (cloned on the expert's demonstrations on first use)")
     bar = tqdm(
-        total=base_config(world).steps,
+        total=base_steps(world),
         desc="cloning the base policy",
         leave=False,
         disable=not progress,

@@ -38,7 +38,7 @@ from policy.train import (
     LossCallback,
     TrainConfig,
     base_config,
-    behaviour_clone,
+    clone_base,
     training_demos,
     training_tasks,
 )
@@ -83,6 +83,8 @@ def recipe(world: World, demos: list[Trajectory], *, seed: int, config: TrainCon
             [round(float(c), 3) for c in d.observations.reshape(-1, 3).mean(axis=0)] for d in demos
         ],
     }
+    if world.cloning.dagger_rounds:  # only where asked: the other worlds' recipes stay as they were
+        doc["dagger_rounds"] = world.cloning.dagger_rounds
     return json.loads(json.dumps(doc))  # as it reads back from config.json (lists, not tuples)
 
 
@@ -175,7 +177,7 @@ def base_policy(
             print(
                 f"dfa: the cached base policy is unusable ({e}); training it again", file=sys.stderr
             )
-    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    policy, losses = clone_base(world, demos, seed=seed, config=config, on_loss=on_loss)
     solved = sum(r.success for r in world.rollout_batch(training_tasks(world, seed), policy))
     meta: dict[str, Any] = {
         "recipe": now,

@@ -148,6 +148,50 @@ def finetune(
     )
 
 
+def expert_relabelled(world: World, task: Task, visited: Trajectory) -> Trajectory:
+    """The scenes and frames a rollout visited, each labelled with the expert's action there
+    (World.expert_action, closed-loop on the state): what DAgger aggregates."""
+    labels = np.stack(
+        [np.asarray(world.expert_action(task, s)) for s in visited.scenes[: visited.horizon]]
+    )
+    return Trajectory(visited.scenes, visited.observations, labels, visited.success)
+
+
+def dagger(
+    world: World,
+    demos: Sequence[Trajectory],
+    tasks: Sequence[Task],
+    *,
+    rounds: int,
+    config: TrainConfig = BASE,
+    on_loss: LossCallback | None = None,
+) -> tuple[Policy, list[float]]:
+    """Behaviour cloning with DAgger (Ross et al. 2011) and the scripted expert as the labeller:
+    clone on `demos`, then `rounds` times roll the policy out on `tasks`, label every scene it
+    visited with the expert's action, add those to the data and clone again from the policy
+    so far (config.steps each time, the optimiser's seed moved on by the round).
+    Returns the last policy and the loss of every step of every round."""
+    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    data = list(demos)
+    for r in range(1, rounds + 1):
+        visited = world.rollout_batch(tasks, policy)
+        data += [expert_relabelled(world, t, v) for t, v in zip(tasks, visited, strict=True)]
+        policy, more = behaviour_clone(
+            world,
+            data,
+            config=replace(config, seed=config.seed + r),
+            init=policy,
+            on_loss=None if on_loss is None else _counted_on(on_loss, len(losses)),
+        )
+        losses += more
+    return policy, losses
+
+
+def _counted_on(on_loss: LossCallback, start: int) -> LossCallback:
+    """`on_loss` with steps counted on from `start` (a later round's first step is start)."""
+    return lambda step, loss: on_loss(start + step, loss)
+
+
 def training_tasks(world: World, seed: int = 0) -> list[Task]:
     """The training tasks a base policy is cloned on (world.cloning.demonstrations of them;
     the paper's worlds: N_TRAIN_DEMOS)."""
@@ -160,6 +204,29 @@ def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
     world's action noise, each seeded by its task's seed)."""
     noise = world.cloning.noise
     return [world.demonstrate(t, noise=noise, seed=t.seed) for t in training_tasks(world, seed)]
+
+
+def clone_base(
+    world: World,
+    demos: Sequence[Trajectory],
+    *,
+    seed: int = 0,
+    config: TrainConfig = BASE,
+    on_loss: LossCallback | None = None,
+) -> tuple[Policy, list[float]]:
+    """A base policy cloned on the training demonstrations as the world asks
+    (World.cloning): plain behaviour cloning, or DAgger on the training tasks of `seed` where
+    it asks for rounds of it."""
+    rounds = world.cloning.dagger_rounds
+    if not rounds:
+        return behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    tasks = training_tasks(world, seed)
+    return dagger(world, demos, tasks, rounds=rounds, config=config, on_loss=on_loss)
+
+
+def base_steps(world: World) -> int:
+    """Gradient steps a base policy of `world` takes in all (every DAgger round's too)."""
+    return world.cloning.steps * (1 + world.cloning.dagger_rounds)
 
 
 def base_config(world: World) -> TrainConfig:

@@ -34,6 +34,12 @@ class Cloning:
     """Standard deviation of the noise added to the actions a demonstration executes, while it
     keeps the expert's own action as the label (closed-loop worlds: the policy then sees the
     states its small mistakes lead to, and how the expert recovers from them)."""
+    dagger_rounds: int = 0
+    """DAgger rounds after the first clone (policy.train.dagger): each rolls the policy out on
+    the training tasks, labels every scene it visited with `expert_action` (a scripted expert
+    closed-loop on the state labels any scene) and clones again on everything so far, from the
+    policy so far, `steps` more gradient steps. Still behaviour cloning on the scripted expert;
+    0: plain cloning."""
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,9 @@ import numpy as np
 GAIN = 10.0  # action per metre of error (saturates at 0.1 m)
 HOVER_M = 0.06  # the gripper comes down onto the object as it lines up under it
 GRASP_M = 0.012  # closer than this to the object's centre, the fingers close
+LINED_UP_M = 0.01  # this near over the object (x, y), the gripper goes all the way down and
+# grips: without it a gripper a few mm off (noise, a cloned policy's error) hovered over the
+# block for good (the hover height shrank with the offset but never let it within GRASP_M)
 HELD_M = 0.02  # within this of the gripper, with the fingers closed, the object is held
 CLOSED_WIDTH_M = 0.055  # finger opening below which the fingers count as closed on the block
 CARRY_Z_M = 0.52  # a carried object crosses the table this high (its top is at 0.4 m)
@@ -37,9 +40,11 @@ def pick_and_place(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: f
             to = np.array([obj[0], obj[1], CARRY_Z_M]) if obj[2] < CARRY_Z_M - 0.02 else goal
             to[2] = max(to[2], CARRY_Z_M)
         return _move(to + (grip - obj), grip, -1.0)
-    hover = min(HOVER_M, 4.0 * float(np.linalg.norm(d[:2])))
+    off = float(np.linalg.norm(d[:2]))
+    hover = min(HOVER_M, 4.0 * max(0.0, off - LINED_UP_M))
     above = obj + np.array([0.0, 0.0, hover])
-    return _move(above, grip, 1.0 if np.linalg.norm(d) > GRASP_M else -1.0)
+    grasp = np.linalg.norm(d) < GRASP_M or (off < LINED_UP_M and abs(d[2]) < GRASP_M)
+    return _move(above, grip, -1.0 if grasp else 1.0)
 
 
 def push(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: float) -> np.ndarray:
