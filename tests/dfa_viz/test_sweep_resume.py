@@ -126,7 +126,7 @@ def _stop(temp: str) -> None:
     for p in procs.values():
         with contextlib.suppress(psutil.NoSuchProcess):
             p.terminate()
-    _, alive = psutil.wait_procs(list(procs.values()), timeout=5)
+    _, alive = psutil.wait_procs(list(procs.values()), timeout=2)
     for p in alive:
         with contextlib.suppress(psutil.NoSuchProcess):
             p.kill()
