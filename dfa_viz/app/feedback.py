@@ -159,7 +159,7 @@ class FeedbackSection:
 
     def __init__(self, client: viser.ClientHandle, state: LoopState, warn) -> None:
         self.client, self.state, self.warn = client, state, warn
-        self.folder = client.gui.add_folder("5 · Feedback", visible=False)
+        self.folder = client.gui.add_folder("4 · Feedback", visible=False)
         with self.folder:
             self.intro = client.gui.add_markdown("")
         self.controls: list[MarkControls] = []

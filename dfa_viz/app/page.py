@@ -55,6 +55,11 @@ class Page:
                 label: gui.add_button(label, icon=viser.Icon.ARROW_RIGHT, visible=False)
                 for label in (USE_DEMO, ASK_EXPERT, FINETUNE, NEXT_TASK)
             }
+            # judging is a choice of two: both buttons, while the policy's rollout is judged
+            self.failed = gui.add_button("Failed", color="red", icon=viser.Icon.X, visible=False)
+            self.succeeded = gui.add_button(
+                "Succeeded", color="green", icon=viser.Icon.CHECK, visible=False
+            )
             self.reason = gui.add_markdown("", visible=False)
             self.job_bar = gui.add_progress_bar(0, animated=True, visible=False)
         self.next_panel.dock_above(client.gui.main_panel)
@@ -62,13 +67,7 @@ class Page:
 
         self.task = TaskSection(client, state, self._guard)
 
-        self.judge_folder = gui.add_folder("2 · Judge", visible=False)
-        with self.judge_folder:
-            gui.add_markdown("Did the policy do what you wanted?")
-            self.failed = gui.add_button("Failed", color="red", icon=viser.Icon.X)
-            self.succeeded = gui.add_button("Succeeded", color="green", icon=viser.Icon.CHECK)
-
-        self.demo_folder = gui.add_folder("3 · Demonstrate", visible=False)
+        self.demo_folder = gui.add_folder("2 · Demonstrate", visible=False)
         with self.demo_folder:
             self.demo_hint = gui.add_markdown("")
             self.demo_summary = gui.add_markdown("")
@@ -79,7 +78,7 @@ class Page:
             self.expert = gui.add_button("Ask the expert", icon=viser.Icon.ROBOT)
             self.picker = EpisodePicker(client, state, self._guard)  # dfa serve --demos
 
-        self.diag_folder = gui.add_folder("4 · Diagnose", visible=False)
+        self.diag_folder = gui.add_folder("3 · Diagnose", visible=False)
         with self.diag_folder:
             self.diagnosis = gui.add_markdown("")
             tie = gui.add_dropdown("minimal edit", ("—",), visible=False)
@@ -88,7 +87,7 @@ class Page:
 
         self.feedback = FeedbackSection(client, state, self.warn)
 
-        self.adapt_folder = gui.add_folder("6 · Adapt", visible=False)
+        self.adapt_folder = gui.add_folder("5 · Adapt", visible=False)
         with self.adapt_folder:
             self.finetune = gui.add_button("Augment & finetune", icon=viser.Icon.BOLT)
             steps = state.adapt.train_config(0).steps
@@ -104,7 +103,7 @@ class Page:
             )
             self.results = gui.add_markdown("")
 
-        with gui.add_folder("7 · Share"):
+        with gui.add_folder("6 · Share"):
             self.download = gui.add_button("Download .rrd", icon=viser.Icon.DOWNLOAD)
             self.share = gui.add_markdown("")
 
@@ -197,9 +196,9 @@ class Page:
         self.job_bar.visible = job is not None
         if job is not None:
             self.job_bar.value = round(100 * job.progress, 1)
-        self.judge_folder.visible = run is not None and stage in ("judge", "solved")
         for b in (self.failed, self.succeeded):
-            b.disabled = busy or stage != "judge"
+            b.visible = run is not None and stage == "judge"
+            b.disabled = busy
         self.demo_folder.visible = run is not None and stage == "demonstrate"
         self.demo_hint.content = view.demo_hint
         summary = f"*{view.demo_summary}*" if view.demo_summary else ""
