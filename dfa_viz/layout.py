@@ -14,8 +14,8 @@ from search import distance_to_demo
 from sim.core import Trajectory, World
 
 ROLLOUTS = ("failed", "demonstration", "counterfactual", "finetuned")
-AUGMENTED_SHOWN = 4  # variants given a view of their own (all are recorded): 4 tiles are
-# wide enough for their titles at 1400 px (8 cut "variant 1" short)
+AUGMENTED_SHOWN = 2  # variants given a view of their own (all are recorded): 2 tiles are
+# wide enough for "variant 1 of 40" at 1400 px (4 cut "variant 1" to "varian")
 
 
 def _mark(traj: Trajectory | None) -> str:
@@ -92,7 +92,9 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
         bottom.append(
             rrb.Grid(
                 *(
-                    rrb.Spatial2DView(origin=f"augmented/a{i:03d}", name=f"variant {i + 1}")
+                    rrb.Spatial2DView(
+                        origin=f"augmented/a{i:03d}", name=f"variant {i + 1} of {n_aug}"
+                    )
                     for i in range(min(n_aug, AUGMENTED_SHOWN))
                 ),
                 name=f"variants ({n_aug})",

@@ -18,6 +18,8 @@ from dfa_viz.bench.page import ARGS, CHROMIUM, WAIT_S  # one launch recipe for t
 from dfa_viz.configs import AdaptConfig, Finetuning
 
 VIEWPORT = {"width": 1600, "height": 1000}
+WINDOW_SIZES = [(1280, 720), (1440, 900), (1920, 1080)]  # the window sizes people use
+LAYOUT_S = 30  # a resized page lays itself out in well under a second; a ceiling, not a wait
 # Every wait here is for something the page shows (a text, an enabled button, the session's
 # state) and ends as soon as it is there. WAIT_S is a ceiling, not an expectation: it only turns
 # a page that never gets there into a failure. A job (loading a policy, a search, finetuning)
@@ -179,6 +181,35 @@ class UI:
         m = re.search(r"(\d+)% → (\d+)%", text)
         assert m, text
         return int(m.group(1)), int(m.group(2))
+
+    @staticmethod
+    def inside(page, locator) -> bool:
+        """Whether the element lies wholly inside the window (not scrolled or cut off)."""
+        box, size = locator.bounding_box(), page.viewport_size
+        return (
+            box is not None
+            and box["x"] >= 0
+            and box["y"] >= 0
+            and box["x"] + box["width"] <= size["width"]
+            and box["y"] + box["height"] <= size["height"]
+        )
+
+    @classmethod
+    def in_view_at_every_size(cls, page, *controls, shots=None, stage: str = "") -> None:
+        """Each control visible and wholly inside the window at every size of WINDOW_SIZES,
+        once the page has laid itself out again (LAYOUT_S at most); with `shots`, a picture
+        at each size named after `stage`. The window is left at the last size."""
+        for width, height in WINDOW_SIZES:
+            page.set_viewport_size({"width": width, "height": height})
+            deadline = time.monotonic() + LAYOUT_S
+            for control in controls:
+                while not cls.inside(page, control):
+                    assert time.monotonic() < deadline, (
+                        f"{stage} {control}: not in {width}x{height}"
+                    )
+                    time.sleep(0.1)
+            if shots is not None:
+                page.screenshot(path=shots / f"{stage}-{width}x{height}.png")
 
     @staticmethod
     def wait_until(cond, what: str) -> None:

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 
 import pytest
@@ -24,29 +23,7 @@ PROTOCOL = Protocol(tasks=(("nav2d", 1),), conditions=("none", "counterfactual")
 SECRETS = ("object_ti", "object_tr", "distractor_ti", "distractor_tr", "relevance", "task_seed")
 
 
-SIZES = [(1280, 720), (1440, 900), (1920, 1080)]
 VIEWPORT = {"width": 1280, "height": 900}  # where the participants answer
-
-
-def in_view_at_every_size(page, control) -> None:
-    """The control inside the window at every size people use (then back to VIEWPORT)."""
-    for width, height in SIZES:
-        page.set_viewport_size({"width": width, "height": height})
-        deadline = time.monotonic() + 30  # a resized page lays out in well under a second
-        while True:
-            box = control.bounding_box()
-            inside = (
-                box is not None
-                and box["x"] >= 0
-                and box["y"] >= 0
-                and box["x"] + box["width"] <= width
-                and box["y"] + box["height"] <= height
-            )
-            if inside:
-                break
-            assert time.monotonic() < deadline, f"{control} outside {width}x{height}: {box}"
-            time.sleep(0.1)
-    page.set_viewport_size(VIEWPORT)
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +44,8 @@ class Participant:
         self.page.on("websocket", lambda ws: ws.on("framereceived", lambda f: frames.append(f)))
         self.page.goto(url)
         self.page.get_by_role("button", name="Start").wait_for()
-        in_view_at_every_size(self.page, self.page.get_by_role("button", name="Start"))
+        UI.in_view_at_every_size(self.page, self.page.get_by_role("button", name="Start"))
+        self.page.set_viewport_size(VIEWPORT)
         for dev in ("Save Canvas", "Dev Settings"):  # viser's developer panel: folded away
             assert not self.page.get_by_role("button", name=dev).first.is_visible(), dev
         assert not self.page.get_by_text("Scene tree").first.is_visible()
@@ -94,7 +72,8 @@ class Participant:
         for i in range(1, n + 1):
             page.get_by_text(f"Introduction {i} of {n}").first.wait_for()
             page.get_by_role("button", name="(Enter)").wait_for()
-            in_view_at_every_size(page, page.get_by_role("button", name="(Enter)"))
+            UI.in_view_at_every_size(page, page.get_by_role("button", name="(Enter)"))
+            page.set_viewport_size(VIEWPORT)
             if self.keyboard:
                 page.keyboard.press("Enter")
             else:
@@ -121,7 +100,8 @@ class Participant:
         ticked, none, matters = self.choice(position)
         submit = page.get_by_role("button", name="Submit answer (Enter)")
         submit.wait_for()
-        in_view_at_every_size(page, submit)
+        UI.in_view_at_every_size(page, submit)
+        page.set_viewport_size(VIEWPORT)
         shown = page.content()
         assert ("What changed" in shown or "No change of the looks" in shown) == (
             self.plan()[position]["condition"] == "counterfactual"
