@@ -10,10 +10,12 @@ from __future__ import annotations
 import pytest
 from playwright.sync_api import expect
 
+from dfa_viz.app.offers import Offers
+
 pytestmark = pytest.mark.browser
 
 SMALLEST = {"width": 1280, "height": 720}
-WORLDS = ["nav2d", "doorkey", "tabletop"]
+WORLDS = Offers.for_session("nav2d").worlds  # the worlds the picker lists
 
 # None while no progress bar is drawn, else whether it lies inside the window (one reading of
 # the page, so a job that ends between two readings cannot make them disagree)
