@@ -30,6 +30,7 @@ from pathlib import Path
 import pytest
 import rerun as rr
 
+from dfa_viz.sweep.journal import RESULTS
 from sim.core import files
 
 pytestmark = pytest.mark.slow
@@ -134,6 +135,12 @@ def one_line(proc: subprocess.CompletedProcess, path: Path) -> str:
     return err[0]
 
 
+def whole_lines(path: Path) -> bool:
+    """A JSON-lines file whose every line is whole (ends with a newline and reads back)."""
+    text = path.read_text()
+    return text.endswith("\n") and all(json.loads(line) for line in text.splitlines())
+
+
 def whole_csv(path: Path) -> list[dict[str, str]]:
     """A CSV that ends with a whole line, every row with every column."""
     text = path.read_text()
@@ -170,8 +177,11 @@ def test_a_sweep_killed_while_writing_its_files_starts_afresh_to_the_same_files(
     killed = dfa(*SWEEP, "--out", str(out), kill_at=(".sweep.*.tmp.rrd", 2))
     assert killed.returncode == -signal.SIGKILL, killed.stderr[-3000:]
     left = listing(out)
-    # the table and the picture waited for the recording: nothing in place, only temporaries
-    assert len(left) == 3 and all(n.startswith(".") and ".tmp." in n for n in left), left
+    # the table and the picture waited for the recording: nothing in place but the results
+    # file (append-only, each unit's line whole), only temporaries
+    temps = [n for n in left if n != RESULTS]
+    assert RESULTS in left and whole_lines(left[RESULTS]), left
+    assert len(temps) == 3 and all(n.startswith(".") and ".tmp." in n for n in temps), left
     for name in ("sweep.csv", "heatmap.png", "sweep.rrd"):
         assert len(files.stale_temps(out / name)) == 1, name
     again = dfa(*SWEEP, "--out", str(out))
@@ -301,7 +311,8 @@ def test_a_sweep_on_a_full_disk_writes_nothing_then_finishes_with_room(small_dis
     out = disk.folder / "out"
     proc = dfa(*SWEEP, "--out", str(out), limit=disk.limit())
     one_line(proc, out / "sweep.rrd")
-    assert listing(out) == {}  # no part of a set, no temporary
+    left = listing(out)  # no part of a set, no temporary; the units' results, each line whole
+    assert list(left) == [RESULTS] and whole_lines(left[RESULTS]), left
     disk.grow()
     again = dfa(*SWEEP, "--out", str(out), limit=disk.limit())
     assert again.returncode == 0, again.stderr[-3000:]
