@@ -19,7 +19,7 @@ from dfa_viz.configs import AdaptConfig, Finetuning
 
 VIEWPORT = {"width": 1600, "height": 1000}
 WINDOW_SIZES = [(1280, 720), (1440, 900), (1920, 1080)]  # the window sizes people use
-LAYOUT_S = 30  # a resized page lays itself out in well under a second; a ceiling, not a wait
+LAYOUT_S = 120  # a resized page lays itself out in well under a second; a ceiling, not a wait
 # Every wait here is for something the page shows (a text, an enabled button, the session's
 # state) and ends as soon as it is there. WAIT_S is a ceiling, not an expectation: it only turns
 # a page that never gets there into a failure. A job (loading a policy, a search, finetuning)
