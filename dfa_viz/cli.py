@@ -28,7 +28,7 @@ import tyro
 from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.bench.args import BenchArgs
 from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, WorldsArgs
-from dfa_viz.experiment.args import ExplainArgs, Q2Args
+from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args
 from dfa_viz.lerobot.args import ExportArgs, ViewArgs
 from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
 from dfa_viz.sweep.args import SearchArgs, SweepArgs
@@ -37,6 +37,7 @@ from sim.core import UserError, files
 Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experiment`)
     Annotated[Q2Args, tyro.conf.subcommand("q2")],
     Annotated[ExplainArgs, tyro.conf.subcommand("explain")],
+    Annotated[PairArgs, tyro.conf.subcommand("pair")],
     Annotated[SearchArgs, tyro.conf.subcommand("search")],
 ]
 Study = Union[  # noqa: UP007 (the study's subcommands, `dfa study new|serve|analyse`)
@@ -60,8 +61,9 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
         Experiment,
         tyro.conf.subcommand(
             "experiment",
-            description="Run one of the experiments: q2 (finetuning), explain, or search "
-            "(how fast other searches find the sweep's failure modes).",
+            description="Run one of the experiments: q2 (finetuning), explain, pair (can an "
+            "explainer tell a policy thrown by a distractor from one taught to ignore it), or "
+            "search (how fast other searches find the sweep's failure modes).",
         ),
     ],
     Annotated[
@@ -183,6 +185,12 @@ def explain(args: ExplainArgs) -> None:
     experiment_explain(args)
 
 
+def pair(args: PairArgs) -> None:
+    from dfa_viz.experiment.cli import experiment_pair
+
+    experiment_pair(args)
+
+
 def search(args: SearchArgs) -> None:
     from dfa_viz.sweep.compare import run_search_comparison
 
@@ -242,6 +250,7 @@ HANDLERS = {
     ServeArgs: serve,
     Q2Args: experiment,
     ExplainArgs: explain,
+    PairArgs: pair,
     SearchArgs: search,
     SweepArgs: sweep,
     ExportArgs: export,

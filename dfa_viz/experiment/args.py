@@ -127,3 +127,22 @@ class ExplainArgs:
     """An existing Ray cluster ("auto", "ray://host:10001"); default: start one here."""
     progress: bool = True
     """Show a progress bar."""
+
+
+@dataclass(frozen=True)
+class PairArgs:
+    """Can an explainer tell a policy thrown by a distractor from the same policy finetuned to
+    ignore it? For each seed, nav2d's base policy on its failing distractor_ti task and the
+    policy the loop makes from it (TI feedback, variants with and without the distractor,
+    finetuned): how far removing the distractor moves each one's actions (the ground truth),
+    and each saliency method's share of its attribution on the distractor's pixels for each
+    (by magnitude and of the blame).
+
+    Writes OUT/pair.csv (a row per seed, method and reading) and OUT/table.md (per method and
+    reading, on how many seeds the base policy gets the larger share).
+    """
+
+    seeds: int = 10
+    """Seeds 0 .. SEEDS-1, each an independent pair."""
+    out: Path = Path("recordings/explain-pair")
+    """Folder for pair.csv and table.md."""

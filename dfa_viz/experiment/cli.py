@@ -4,7 +4,7 @@ it runs."""
 
 from __future__ import annotations
 
-from dfa_viz.experiment.args import ExplainArgs, Q2Args
+from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args
 
 
 def experiment_q2(args: Q2Args) -> None:
@@ -53,6 +53,23 @@ def experiment_explain(args: ExplainArgs) -> None:
         progress=args.progress,
     )
     _report(summary, items="tasks", done="explained")
+
+
+def experiment_pair(args: PairArgs) -> None:
+    """Make and compare the model pair of each seed; write the rows and the table."""
+    from tqdm import tqdm
+
+    from dfa_viz.experiment.model_pair import pair_rows, write
+    from sim.core import UserError
+
+    if args.seeds < 1:
+        raise UserError(f"--seeds is how many seeds to run, at least 1, not {args.seeds}")
+    rows = [
+        r for seed in tqdm(range(args.seeds), desc="pairs", unit="seed") for r in pair_rows(seed)
+    ]
+    command = f"dfa experiment pair --seeds {args.seeds} --out {args.out}"
+    for path in write(rows, args.out, command):
+        print(f"  {path}")
 
 
 def _report(summary, *, items: str, done: str) -> None:
