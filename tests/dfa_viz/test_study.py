@@ -18,7 +18,7 @@ from dfa_viz.study.codes import CODES
 from dfa_viz.study.freeze import TRUTH, freeze, load_study, load_task
 from dfa_viz.study.protocol import Protocol, plan
 from dfa_viz.study.report import write_analysis
-from sim import get_world
+from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
 SMALL = Protocol(tasks=(("nav2d", 1),), conditions=("none", "counterfactual"), seed=0)
@@ -148,7 +148,7 @@ def named_cause(world, task, text: str) -> list[str]:
     return [w for w in words if re.search(rf"\b{re.escape(w.lower())}\b", low)]
 
 
-@pytest.mark.parametrize("name", ["nav2d", "doorkey", "tabletop"])
+@pytest.mark.parametrize("name", PAPER_WORLDS)
 def test_no_question_names_what_may_change_or_its_cause(name, study):
     """The study asks World.intent: what the user wants, naming only what R' fixes. The
     reward's own instruction gives the answer away ("go to the red goal, whatever its shape")."""
