@@ -6,6 +6,8 @@ if os.environ.get("DFA_TORCH_THREADS"):  # `make test` runs the suite with 1, th
 
     torch.set_num_threads(int(os.environ["DFA_TORCH_THREADS"]))
 
+from pathlib import Path
+
 import pytest
 
 from sim import get_world
@@ -108,3 +110,19 @@ class StudyCheck:
 @pytest.fixture(scope="session")
 def study_check():
     return StudyCheck
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory) -> Path:
+    """A small study made by the real command (nav2d: 3 questions, 5 tasks); a module that
+    needs another study defines its own `study`."""
+    from dfa_viz.cli import main
+
+    root = tmp_path_factory.mktemp("study")
+    toml = root / "study.toml"
+    toml.write_text('seed = 0\nconditions = ["none", "counterfactual"]\n[tasks]\nnav2d = 1\n')
+    out = root / "s"
+    args = ["--protocol", str(toml), "--out", str(out), "--participants", "4"]
+    assert main(["study", "new", *args]) == 0
+    assert (root / "s" / "protocol.toml").read_text() == toml.read_text()
+    return root / "s"
