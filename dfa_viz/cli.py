@@ -3,7 +3,7 @@ each client's in its args.py), parsed by tyro.
 
     dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
     dfa export lerobot | view
-    dfa experiment explain | search
+    dfa experiment explain | search | unplanted
     dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
@@ -28,7 +28,7 @@ import tyro
 from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.bench.args import BenchArgs
 from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, WorldsArgs
-from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args
+from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args, UnplantedArgs
 from dfa_viz.lerobot.args import ExportArgs, ViewArgs
 from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
 from dfa_viz.sweep.args import SearchArgs, SweepArgs
@@ -39,6 +39,7 @@ Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experim
     Annotated[ExplainArgs, tyro.conf.subcommand("explain")],
     Annotated[PairArgs, tyro.conf.subcommand("pair")],
     Annotated[SearchArgs, tyro.conf.subcommand("search")],
+    Annotated[UnplantedArgs, tyro.conf.subcommand("unplanted")],
 ]
 Study = Union[  # noqa: UP007 (the study's subcommands, `dfa study new|serve|analyse`)
     Annotated[NewStudyArgs, tyro.conf.subcommand("new")],
@@ -63,7 +64,8 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
             "experiment",
             description="Run one of the experiments: q2 (finetuning), explain, pair (can an "
             "explainer tell a policy thrown by a distractor from one taught to ignore it), or "
-            "search (how fast other searches find the sweep's failure modes).",
+            "search (how fast other searches find the sweep's failure modes), or unplanted "
+            "(the search, saliency and the learned prior on failures nobody planted).",
         ),
     ],
     Annotated[
@@ -191,6 +193,12 @@ def pair(args: PairArgs) -> None:
     experiment_pair(args)
 
 
+def unplanted(args: UnplantedArgs) -> None:
+    from dfa_viz.experiment.cli import experiment_unplanted
+
+    experiment_unplanted(args)
+
+
 def search(args: SearchArgs) -> None:
     from dfa_viz.sweep.compare import run_search_comparison
 
@@ -252,6 +260,7 @@ HANDLERS = {
     ExplainArgs: explain,
     PairArgs: pair,
     SearchArgs: search,
+    UnplantedArgs: unplanted,
     SweepArgs: sweep,
     ExportArgs: export,
     ViewArgs: view,

@@ -146,3 +146,41 @@ class PairArgs:
     """Seeds 0 .. SEEDS-1, each an independent pair."""
     out: Path = Path("recordings/explain-pair")
     """Folder for pair.csv and table.md."""
+
+
+@dataclass(frozen=True)
+class UnplantedArgs:
+    """The search, the saliency methods and the learned prior on failures nobody planted.
+
+    Draws failing tasks the benchmark's generator did not make (search/unplanted.py): compound
+    (a training task with two atomic changes of two different objects at once, drawn with the
+    seed), moved (the same on the world's position shift) or natural (a training layout the
+    policy fails with no edit at all: an outside agent's own failures). The ground truth is
+    exhaustive: every edit of size 1 and 2 rolled out and judged by R'; the minimal edits that
+    restore success. Measured on each task: whether the counterfactual search's best edit is
+    one of them (its size, its rollouts), each saliency method's object top-1 against their
+    objects, and the learned prior's rank of the first of them.
+
+    Writes OUT/tasks.csv, OUT/saliency.csv, OUT/runs.json and OUT/table.md; a run replaces the
+    rows of its world, policy and kind and keeps the others, and the table is rebuilt from all.
+    """
+
+    world: str = "nav2d"
+    """Any world with training tasks (`dfa worlds`), e.g.
+    minigrid:MiniGrid-DoorKey-5x5-v0:tile=12."""
+    kind: Literal["compound", "moved", "natural"] = "compound"
+    """Which failures: compound, moved (needs the world's 'other' shift) or natural."""
+    tasks: int = 20
+    """Failing tasks to measure (all distinct)."""
+    seed: int = 0
+    """Draws the candidates (seeds 1,000,000 x (SEED + 1) on) and the saliency's randomness."""
+    policy: str | None = None
+    """The policy (`sb3:FILE.zip`, a checkpoint folder, ...); default: the world's base policy."""
+    prior: Path | None = None
+    """A learned prior file (`dfa prior`); default: fitted here on --prior-tasks planted tasks."""
+    prior_tasks: int = 20
+    """Planted size-2 tasks the prior is fitted on when no --prior is given."""
+    tries: int = 2000
+    """Candidates drawn at most to find --tasks failing ones."""
+    out: Path = Path("recordings/experiments/unplanted")
+    """The results folder."""

@@ -4,7 +4,7 @@ it runs."""
 
 from __future__ import annotations
 
-from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args
+from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args, UnplantedArgs
 
 
 def experiment_q2(args: Q2Args) -> None:
@@ -69,6 +69,76 @@ def experiment_pair(args: PairArgs) -> None:
     ]
     command = f"dfa experiment pair --seeds {args.seeds} --out {args.out}"
     for path in write(rows, args.out, command):
+        print(f"  {path}")
+
+
+def experiment_unplanted(args: UnplantedArgs) -> None:
+    """Draw, measure and table one world's unplanted failures."""
+    import time
+
+    from tqdm import tqdm
+
+    from dfa_viz.experiment.unplanted import TASK_COLUMNS, run_world
+    from dfa_viz.experiment.unplanted_table import merge, read_csv
+    from policy.outside import chosen_policy
+    from search.prior import LearnedPrior
+    from search.unplanted import check_kind
+    from sim import check_world_name, get_world
+    from sim.core import UserError, check_seed
+
+    check_seed(args.seed)
+    for flag, value in (("--tasks", args.tasks), ("--prior-tasks", args.prior_tasks)):
+        if value < 1:
+            raise UserError(f"{flag} must be at least 1, not {value}")
+    if args.tries < args.tasks:
+        raise UserError(f"--tries {args.tries} is fewer than --tasks {args.tasks}")
+    if args.out.exists() and not args.out.is_dir():
+        raise UserError(f"--out {args.out} is a file; give a folder")
+    read_csv(args.out / "tasks.csv", TASK_COLUMNS)  # an older folder: one line, before the work
+    world = get_world(check_world_name(args.world))
+    check_kind(world, args.kind)
+    if not world.benchmark:
+        raise UserError(f"{world.name} has no training tasks or expert to judge failures by")
+    policy = chosen_policy(world, args.policy)
+    t0 = time.perf_counter()
+    if args.prior is not None:
+        prior, prior_text = LearnedPrior.load(args.prior, world), str(args.prior)
+    else:
+        from search.planted import fit_on_planted
+
+        prior, _ = fit_on_planted(world, policy, n=args.prior_tasks)
+        prior_text = f"fitted on {args.prior_tasks} planted tasks"
+    bar = tqdm(total=args.tasks, desc=f"{world.name} {args.kind}", unit="task")
+    rows, sal, drawn = run_world(
+        world,
+        policy,
+        args.kind,
+        args.tasks,
+        seed=args.seed,
+        prior=prior,
+        policy_name=args.policy or "base",
+        tries=args.tries,
+        on_task=lambda row: bar.update(1),
+    )
+    bar.close()
+    command = (
+        f"dfa experiment unplanted --world {world.name} --kind {args.kind} --tasks {args.tasks} "
+        f"--seed {args.seed}"
+        + (f" --policy {args.policy}" if args.policy else "")
+        + (f" --prior {args.prior}" if args.prior else f" --prior-tasks {args.prior_tasks}")
+        + f" --out {args.out}"
+    )
+    run = {
+        "world": world.name,
+        "policy": args.policy or "base",
+        "kind": args.kind,
+        "command": command,
+        "tasks": len(rows),
+        "candidates": drawn,
+        "wall_s": round(time.perf_counter() - t0, 1),
+        "prior": prior_text,
+    }
+    for path in merge(args.out, rows, sal, run):
         print(f"  {path}")
 
 

@@ -1,0 +1,52 @@
+"""`dfa experiment unplanted`: one nav2d compound task measured end to end into a results
+folder, and bad input as one line with exit 2."""
+
+import csv
+import json
+
+import pytest
+
+from dfa_viz.cli import main
+from dfa_viz.experiment.unplanted import SALIENCY_COLUMNS, TASK_COLUMNS, run_world
+from dfa_viz.experiment.unplanted_table import merge
+from search.planted import fit_on_planted
+
+
+def test_one_task_measured_into_a_folder(nav, nav_policy, tmp_path):
+    prior, _ = fit_on_planted(nav, nav_policy, n=2)
+    rows, sal, drawn = run_world(
+        nav, nav_policy, "compound", 1, seed=0, prior=prior, policy_name="base",
+        tries=50, methods=("grad_cam",),
+    )  # fmt: skip
+    (row,) = rows
+    assert drawn >= 1 and tuple(row) == TASK_COLUMNS
+    assert row["gt_size"] in ("1", "2") and int(row["gt_count"]) >= 1
+    assert row["cf_in_gt"] in ("0", "1") and int(row["cf_rollouts"]) >= 1
+    rank, n_at = int(row["prior_rank"]), int(row["n_at_size"])
+    assert 1 <= rank <= n_at and 1 <= int(row["enum_rank"]) <= n_at
+    assert {r["method"] for r in sal} == {"grad_cam", "random"} and len(sal) == 5  # 4 readouts
+    assert all(tuple(r) == SALIENCY_COLUMNS and r["hit"] in ("0", "1") for r in sal)
+    run = {"world": "nav2d", "policy": "base", "kind": "compound", "command": "dfa ...",
+           "tasks": 1, "candidates": drawn, "wall_s": 1.0, "prior": "test"}  # fmt: skip
+    merge(tmp_path, rows, sal, run)
+    merge(tmp_path, rows, sal, run)  # the same run again replaces its rows
+    with (tmp_path / "tasks.csv").open() as f:
+        assert list(csv.DictReader(f)) == rows
+    assert len(json.loads((tmp_path / "runs.json").read_text())) == 1
+    text = (tmp_path / "table.md").read_text()
+    assert "| nav2d | base | compound | 1 |" in text and "Grad-CAM" in text
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--tasks", "0"], "--tasks must be at least 1, not 0"),
+        (["--kind", "moved", "--world", "nosuch"], "nosuch"),
+        (["--tries", "1", "--tasks", "2"], "--tries 1 is fewer than --tasks 2"),
+        (["--seed", "-1"], "seed must be an integer"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(args, message, capsys, tmp_path):
+    assert main(["experiment", "unplanted", "--out", str(tmp_path / "o"), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
