@@ -5,10 +5,11 @@ The search first tries plans that never drop anything (what most tasks need, and
 search: objects then only move with the agent); only when there is none does it search with
 every action, within MAX_EXPANDED scenes.
 
-Plans are cached by scene, and every scene along a plan keeps the rest of it, so a closed-loop
-demonstration searches once. A scene the search cannot solve within the horizon (or within
-MAX_EXPANDED scenes) has no plan: the expert then takes the idle action, and the task
-generator rejects such scenes.
+Plans are cached by scene without its step count, with the steps that were left when each was
+found, and every scene along a plan keeps the rest of it, so a closed-loop demonstration searches
+once. A scene the search cannot solve within the steps left (or within MAX_EXPANDED scenes) has
+no plan, nor has it later with fewer steps left: the expert then takes the idle action without
+searching again, and the task generator rejects such scenes.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ def _key(scene: Scene) -> Scene:
 class Planner:
     def __init__(self, world) -> None:
         self.world = world
-        self._plans: OrderedDict[Scene, tuple[int, ...] | None] = OrderedDict()
+        # scene without its step count -> (plan or None, the steps that were left then)
+        self._plans: OrderedDict[Scene, tuple[tuple[int, ...] | None, int]] = OrderedDict()
         self._lock = threading.Lock()
 
     def plan(self, scene: Scene, *, thorough: bool = True) -> tuple[int, ...] | None:
@@ -40,8 +42,9 @@ class Planner:
         `thorough`, only plans that drop nothing are looked for (a quick "no" for the task
         generator's draws)."""
         with self._lock:
-            if scene in self._plans:
-                return self._plans[scene]
+            known = self._known(scene)
+        if known is not None:
+            return known[0]
         plan = self._search(scene, thorough)
         if plan is None and not thorough:
             return None  # not remembered: a thorough search may still find one
@@ -54,9 +57,24 @@ class Planner:
                     self._remember(s, plan[i + 1 :])
         return plan
 
+    def _left(self, scene: Scene) -> int:
+        return self.world.horizon - int(scene.agent[5])
+
+    def _known(self, scene: Scene) -> tuple[tuple[int, ...] | None] | None:
+        """(plan,) where the cache settles `scene`: a plan that fits the steps left, or none
+        found with at least as many steps left; else None (search)."""
+        entry = self._plans.get(_key(scene))
+        if entry is None:
+            return None
+        plan, left = entry
+        if plan is None:
+            return (None,) if left >= self._left(scene) else None
+        return (plan,) if len(plan) <= self._left(scene) else None
+
     def _remember(self, scene: Scene, plan) -> None:
-        self._plans[scene] = plan
-        self._plans.move_to_end(scene)
+        key = _key(scene)
+        self._plans[key] = (plan, self._left(scene))
+        self._plans.move_to_end(key)
         while len(self._plans) > CACHED:
             self._plans.popitem(last=False)
 

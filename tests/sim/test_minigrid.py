@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import sim
-from sim.core import PRESENCE, UserError
+from sim.core import ABSENT, PRESENCE, PRESENT, Change, Edit, UserError
 from sim.minigrid.world import MiniGridWorld
 
 ENVS = [
@@ -180,6 +180,28 @@ def test_the_experts_plans_earn_the_stock_environments_reward(world):
             if terminated or truncated:
                 break
         assert max(rewards) > 0
+
+
+def test_a_scene_without_a_plan_is_searched_once_in_a_demonstration():
+    """An unsolvable scene (DoorKey with its key removed): the expert idles for the whole
+    horizon, and the scenes it idles through (the same but for the step count) reuse the
+    first search's answer instead of searching again."""
+    w = sim.get_world("minigrid:MiniGrid-DoorKey-5x5-v0")
+    task = w.train_task(0)
+    keyless = task.with_scene(
+        w.apply(task.scene, Edit.of(Change("key0", PRESENCE, PRESENT, ABSENT)))
+    )
+    searched = []
+    search = w.planner._search
+    w.planner._search = lambda scene, thorough=True: (
+        searched.append(scene) or search(scene, thorough)
+    )
+    try:
+        demo = w.demonstrate(keyless)
+    finally:
+        del w.planner._search
+    assert not demo.success and len(demo.actions) == w.horizon
+    assert len(searched) == 1
 
 
 def test_babyai_levels_of_one_instruction_are_worlds():
