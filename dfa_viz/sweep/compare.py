@@ -67,9 +67,17 @@ def run_search_comparison(args: SearchArgs) -> dict:
     say = print if args.progress else (lambda *a, **k: None)
     tasks = sweep_tasks(world, args.tasks)
     p = plan(tasks)
+    from tqdm import tqdm
+
+    units = p.units(world)
     t0 = time.perf_counter()
-    runner = backend_runner(SweepJob(world.name, args.policy), workers=args.workers)
-    results = runner(p.units(world))
+    with tqdm(total=len(units), desc="sweep", unit="unit", disable=not args.progress) as bar:
+        runner = backend_runner(
+            SweepJob(world.name, args.policy),
+            workers=args.workers,
+            on_unit=lambda unit, result: bar.update(1),
+        )
+        results = runner(units)
     sweep_s = time.perf_counter() - t0
     result = summarise(world, p, results, policy=args.policy or "base policy")
     table = outcome_table(world, p, results)
