@@ -3,7 +3,7 @@ each client's in its args.py), parsed by tyro.
 
     dfa run | train | worlds | check-world | bench | prior | demo | serve | sweep | experiment q2
     dfa export lerobot | view
-    dfa experiment explain | search | unplanted
+    dfa experiment explain | search | unplanted | positions
     dfa study new | study serve | study analyse
 
 Each subcommand's help is its config's docstring and fields; a UserError (bad input) prints
@@ -29,6 +29,7 @@ from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.bench.args import BenchArgs
 from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, WorldsArgs
 from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args, UnplantedArgs
+from dfa_viz.experiment.positions_args import PositionsArgs
 from dfa_viz.lerobot.args import ExportArgs, ViewArgs
 from dfa_viz.study.args import AnalyseStudyArgs, NewStudyArgs, ServeStudyArgs
 from dfa_viz.sweep.args import SearchArgs, SweepArgs
@@ -39,6 +40,7 @@ Experiment = Union[  # noqa: UP007 (the experiments, subcommands of `dfa experim
     Annotated[ExplainArgs, tyro.conf.subcommand("explain")],
     Annotated[PairArgs, tyro.conf.subcommand("pair")],
     Annotated[SearchArgs, tyro.conf.subcommand("search")],
+    Annotated[PositionsArgs, tyro.conf.subcommand("positions")],
     Annotated[UnplantedArgs, tyro.conf.subcommand("unplanted")],
 ]
 Study = Union[  # noqa: UP007 (the study's subcommands, `dfa study new|serve|analyse`)
@@ -65,7 +67,8 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
             description="Run one of the experiments: q2 (finetuning), explain, pair (can an "
             "explainer tell a policy thrown by a distractor from one taught to ignore it), or "
             "search (how fast other searches find the sweep's failure modes), or unplanted "
-            "(the search, saliency and the learned prior on failures nobody planted).",
+            "(the search, saliency and the learned prior on failures nobody planted), or "
+            "positions (failures in continuous scene parameters, diagnosed in concepts).",
         ),
     ],
     Annotated[
@@ -206,6 +209,18 @@ def search(args: SearchArgs) -> None:
     print(f"{record['world']}: {len(record['modes'])} failure modes; {args.out}/table.md")
 
 
+def positions(args: PositionsArgs) -> None:
+    from dfa_viz.experiment.positions import run_positions
+
+    record = run_positions(args)
+    gain = record["gain"]
+    print(
+        f"{record['world']}: the surrogate finds {gain['mean']:+.1f} failures per 100 rollouts "
+        f"against uniform sampling ({gain['low']:+.1f} to {gain['high']:+.1f}); "
+        f"{args.out}/table.md"
+    )
+
+
 def sweep(args: SweepArgs) -> None:
     from dfa_viz.sweep.run import run_sweep
     from dfa_viz.sweep.tables import summary, tables
@@ -260,6 +275,7 @@ HANDLERS = {
     ExplainArgs: explain,
     PairArgs: pair,
     SearchArgs: search,
+    PositionsArgs: positions,
     UnplantedArgs: unplanted,
     SweepArgs: sweep,
     ExportArgs: export,

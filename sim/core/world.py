@@ -12,6 +12,7 @@ import numpy as np
 from sim.core.concepts import ConceptSpace
 from sim.core.edit import Edit, apply, apply_many
 from sim.core.errors import UserError
+from sim.core.parameters import SceneParameter
 from sim.core.scene import Scene
 from sim.core.task import SHIFTS, Reward, Task
 from sim.core.trajectory import Trajectory
@@ -91,6 +92,9 @@ class World(abc.ABC):
             say a training task's instruction instead.
         intent(task): what the user wants in plain words, naming nothing R' leaves open (the
             study's questions; default: the reward's instruction).
+        scene_parameters: continuous scene parameters the concept space does not enumerate
+            (sim.core.parameters: an object's x and y), each with its range; set with
+            `with_parameters`, read back with `parameters_of` (none by default).
     """
 
     name: str
@@ -114,6 +118,7 @@ class World(abc.ABC):
     description: str = ""
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
+    scene_parameters: tuple[SceneParameter, ...] = ()
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod
@@ -192,6 +197,16 @@ class World(abc.ABC):
         the way of what the task asks while R' stays within reach: where the sweep tries an
         added object besides the place the scene keeps for it ([] by default: only there)."""
         return []
+
+    def with_parameters(self, scene: Scene, values: Sequence[float]) -> Scene:
+        """`scene` with its `scene_parameters` set to `values` (one float each, in the world's
+        coordinates); sim.core.parameters.InvalidScene where they give no valid scene (out of
+        range, objects overlapping). Only for a world that declares scene parameters."""
+        raise UserError(f"{self.name} has no continuous scene parameters")
+
+    def parameters_of(self, scene: Scene) -> tuple[float, ...]:
+        """The values of `scene_parameters` in `scene`, in their order."""
+        raise UserError(f"{self.name} has no continuous scene parameters")
 
     def make_env(self):
         """This world as a gymnasium environment (the generic sim.core.env.SceneEnv unless the

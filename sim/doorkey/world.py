@@ -19,7 +19,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Benchmark, Key, Scene, Task, Trajectory
+from sim.core import Benchmark, Key, Obj, Scene, Task, Trajectory
+from sim.core.parameters import InvalidScene, SceneParameter, checked
 from sim.doorkey import layout as L
 from sim.doorkey import tasks
 from sim.doorkey.dynamics import step_scene
@@ -57,6 +58,12 @@ class DoorKeyWorld(Benchmark):
     )
     idle_action = L.LEFT  # the steps left after the goal turn in place
     action_names = tuple(k.label for k in sorted(keys, key=lambda k: k.action))
+    # the rows of the key, the door and the goal (their columns are the layout's); a value
+    # is projected onto the nearest row
+    scene_parameters = tuple(
+        SceneParameter(f"{slot}.row", float(L.ROWS[0]), float(L.ROWS[-1]), "cells")
+        for slot in L.OBJ_SLOTS
+    )
 
     def __init__(self) -> None:
         self._renderer = Renderer()
@@ -115,6 +122,24 @@ class DoorKeyWorld(Benchmark):
 
     def in_the_way(self, task: Task, slot: str) -> list[tuple[float, ...]]:
         return tasks.in_the_way(task, slot)
+
+    # -- continuous scene parameters ----------------------------------------------------------
+    def with_parameters(self, scene: Scene, values: Sequence[float]) -> Scene:
+        """The key, door and goal on the rows nearest `values`, in their own columns; refused
+        where one would stand on a present lava tile. The expert may be unable to solve the
+        layout in time (a search counts no failure there)."""
+        rows = [int(np.floor(v + 0.5)) for v in checked(self.scene_parameters, values)]
+        lava = {tuple(o.pos[:2]) for o in scene.objects if o.present and o.slot in L.LAVA_SLOTS}
+        for slot, row in zip(L.OBJ_SLOTS, rows, strict=True):
+            o = scene.obj(slot)
+            cell = (float(L.COLUMNS[slot]), float(row))
+            if cell in lava:
+                raise InvalidScene(f"the {slot} on row {row} would stand on lava")
+            scene = scene.with_obj(Obj(o.slot, o.present, o.values, cell))
+        return scene
+
+    def parameters_of(self, scene: Scene) -> tuple[float, ...]:
+        return tuple(float(scene.obj(slot).pos[1]) for slot in L.OBJ_SLOTS)
 
     def make_env(self):
         from sim.doorkey.env import DoorKeyEnv

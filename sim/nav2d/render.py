@@ -67,11 +67,37 @@ def corner_index(pos: tuple[float, ...]) -> int:
     return CORNERS.index(key)
 
 
-def render_objects(glyphs: list[int], colours: list[int]) -> np.ndarray:
-    """The objects of one scene, drawn in slot order on black -> uint8 (36, 36, 3)."""
+OBJECT_REACH = ARENA - OBJ_PX / 2 / PX_PER_UNIT  # an object's centre within [-5, 5]^2: whole
+
+
+def object_mask(pos: tuple[float, ...], shape: str) -> np.ndarray:
+    """bool (36, 36): the glyph of `shape` centred on `pos`. On a corner, the table's mask;
+    elsewhere (a scene parameter moved it, World.scene_parameters) the glyph's top-left pixel
+    is the one its centre falls in less 3, as on the corners, so positions within a third of a
+    unit draw alike. A centre outside [-OBJECT_REACH, OBJECT_REACH]^2 is refused."""
+    x, y = float(pos[0]), float(pos[1])
+    if (x, y) in CORNERS:
+        return _MASKS[CORNERS.index((x, y)) * len(SHAPES) + SHAPES.index(shape)]
+    if not (abs(x) <= OBJECT_REACH and abs(y) <= OBJECT_REACH):
+        raise ValueError(f"a nav2d object's centre lies in [-5, 5]^2, not at {(x, y)}")
+    col, row = to_px(x, y)
+    return _mask_at(int(np.floor(row)) - OBJ_PX // 2, int(np.floor(col)) - OBJ_PX // 2, shape)
+
+
+@functools.lru_cache(maxsize=4096)
+def _mask_at(r0: int, c0: int, shape: str) -> np.ndarray:
+    mask = np.zeros((SIZE_PX, SIZE_PX), bool)
+    mask[r0 : r0 + OBJ_PX, c0 : c0 + OBJ_PX] = _glyph(shape)
+    mask.flags.writeable = False
+    return mask
+
+
+def render_objects(masks: list[np.ndarray], colours: list[int]) -> np.ndarray:
+    """The objects of one scene, masks bool (36, 36) each, drawn in slot order on black ->
+    uint8 (36, 36, 3)."""
     out = np.zeros((SIZE_PX, SIZE_PX, 3), np.uint8)
-    for g, c in zip(glyphs, colours, strict=True):
-        out[_MASKS[g]] = _RGB[c]
+    for m, c in zip(masks, colours, strict=True):
+        out[m] = _RGB[c]
     return out
 
 

@@ -21,11 +21,14 @@ from collections.abc import Sequence
 import numpy as np
 
 from sim.core import Benchmark, Obj, Scene, Task, Trajectory
+from sim.core.parameters import SceneParameter, checked, keep_apart
 from sim.nav2d import dynamics as D
 from sim.nav2d import render as R
 from sim.nav2d import tasks as TK
-from sim.nav2d.concepts import COLOUR, SHAPE, SPACE
+from sim.nav2d.concepts import COLOUR, SPACE
 from sim.nav2d.expert import expert_action
+
+CLEARANCE = 2.0  # scene parameters keep the goal, agent and distractor this far apart
 
 
 class Nav2DWorld(Benchmark):
@@ -43,6 +46,12 @@ class Nav2DWorld(Benchmark):
     description = "The robot is the white disc; it should drive to the goal."
     image_extent = (-R.ARENA, R.ARENA, -R.ARENA, R.ARENA)
     action_names = ("dx", "dy")
+    # the goal's centre and the agent's start, anywhere their glyph and disc are whole
+    scene_parameters = tuple(
+        SceneParameter(f"{who}.{axis}", -R.OBJECT_REACH, R.OBJECT_REACH, "units")
+        for who in ("goal", "agent")
+        for axis in "xy"
+    )
 
     # -- appearance ---------------------------------------------------------------------------
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
@@ -55,7 +64,7 @@ class Nav2DWorld(Benchmark):
         """The static part of a frame: every present object, drawn once per distinct layout."""
         shown = [o for o in objects if o.present]
         layer = R.render_objects(
-            [R.corner_index(o.pos) * len(R.SHAPES) + SHAPE.index(o.value("shape")) for o in shown],
+            [R.object_mask(o.pos, o.value("shape")) for o in shown],
             [COLOUR.index(o.value("colour")) for o in shown],
         )
         layer.flags.writeable = False
@@ -91,6 +100,25 @@ class Nav2DWorld(Benchmark):
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return TK.placements(task, slot, demo)
+
+    # -- continuous scene parameters ----------------------------------------------------------
+    def with_parameters(self, scene: Scene, values: Sequence[float]) -> Scene:
+        """The goal at (goal.x, goal.y), the agent starting at (agent.x, agent.y); refused
+        where the goal, the agent and a present distractor are not each CLEARANCE apart (a
+        glyph is 2 units wide, the disc 2 across: closer, they overlap)."""
+        gx, gy, ax, ay = checked(self.scene_parameters, values)
+        points = {"the goal": (gx, gy), "the agent": (ax, ay)}
+        d = scene.obj("distractor")
+        if d.present:
+            points["the distractor"] = d.pos
+        keep_apart(points, CLEARANCE, "units")
+        g = scene.obj("goal")
+        moved = Scene(scene.world, scene.objects, (ax, ay, *scene.agent[2:]))
+        return moved.with_obj(Obj(g.slot, g.present, g.values, (gx, gy)))
+
+    def parameters_of(self, scene: Scene) -> tuple[float, ...]:
+        g = scene.obj("goal").pos
+        return (float(g[0]), float(g[1]), float(scene.agent[0]), float(scene.agent[1]))
 
     def make_env(self):
         from sim.nav2d.env import Nav2DEnv

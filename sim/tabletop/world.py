@@ -25,13 +25,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Benchmark, Reward, Scene, Task, Trajectory, UserError, carrying_shift
+from sim.core import Benchmark, Obj, Reward, Scene, Task, Trajectory, UserError, carrying_shift
+from sim.core.parameters import SceneParameter, checked, keep_apart
 from sim.tabletop import tasks as TK
 from sim.tabletop.colours import ALL_COLOURS, DEFAULT_COLOURS
 
 HORIZON = 1
 SUCCESS_RADIUS_M = 0.10  # the object's centre within this of the goal's after settling
 AVOID_MOVE_M = 0.02  # an avoided distractor may not move further than this
+PARAMETER_REACH_M = 0.3  # scene parameters put centres within [-0.3, 0.3]^2: whole in view
+PARAMETER_CLEAR_M = 0.2  # and keep every two present objects' centres this far apart
 
 
 def _dist_xy(a: Sequence[float], b: Sequence[float]) -> float:
@@ -61,6 +64,12 @@ class TabletopWorld(Benchmark):
     description = "A robot arm seen from above should pick up an object and put it on another."
     image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
     action_names = ("pick x (m)", "pick y (m)", "place x (m)", "place y (m)")
+    # where the object and the goal stand on the table (their rotation and height kept)
+    scene_parameters = tuple(
+        SceneParameter(f"{slot}.{axis}", -PARAMETER_REACH_M, PARAMETER_REACH_M, "m")
+        for slot in ("object", "goal")
+        for axis in "xy"
+    )
 
     def __init__(
         self, colours: Sequence[str] = DEFAULT_COLOURS, *, compositing: bool = True
@@ -161,6 +170,27 @@ class TabletopWorld(Benchmark):
 
     def placements(self, task: Task, slot: str, demo: Trajectory) -> list[tuple[float, ...]]:
         return TK.placements(task, slot, demo)
+
+    # -- continuous scene parameters ----------------------------------------------------------
+    def with_parameters(self, scene: Scene, values: Sequence[float]) -> Scene:
+        """The object's centre at (object.x, object.y) and the goal's at (goal.x, goal.y) m;
+        refused where two present objects' centres (distractors too) come closer than
+        PARAMETER_CLEAR_M (the largest footprints are about 0.17 m across)."""
+        ox, oy, gx, gy = checked(self.scene_parameters, values)
+        points = {"the object": (ox, oy), "the goal": (gx, gy)}
+        for slot in TK.DISTRACTORS:
+            d = scene.obj(slot)
+            if d.present:
+                points[slot] = d.pos[:2]
+        keep_apart(points, PARAMETER_CLEAR_M, "m")
+        for slot, (x, y) in (("object", (ox, oy)), ("goal", (gx, gy))):
+            o = scene.obj(slot)
+            scene = scene.with_obj(Obj(o.slot, o.present, o.values, (x, y, *o.pos[2:])))
+        return scene
+
+    def parameters_of(self, scene: Scene) -> tuple[float, ...]:
+        o, g = scene.obj("object").pos, scene.obj("goal").pos
+        return (float(o[0]), float(o[1]), float(g[0]), float(g[1]))
 
     def make_env(self):
         from sim.tabletop.env import TabletopEnv
