@@ -2,7 +2,8 @@
 scenes still going stepped and rendered (an ended scene does not change: its frame is its last
 one), whether each has ended worked out once per step, and no frames kept. The policy sees the
 very batches `World.rollout_batch` would give it, so the outcomes are the same to the bit; the
-expert's actions are replayed without rendering at all."""
+expert's actions are replayed without rendering at all, once per group of scenes that differ
+only in the world's appearance concepts (the tabletop's colours: drawn, never simulated)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.core import Scene, Task, UserError, World
+from sim.core import Obj, Scene, Task, UserError, World
 
 FRAME_BYTES = 256 << 20  # frames one lockstep batch may hold
 MAX_BATCH = 1024  # rollouts per lockstep batch
@@ -99,12 +100,43 @@ def replay_success(
     world: World, tasks: Sequence[Task], scenes: Sequence[Scene], actions: np.ndarray
 ) -> list[bool]:
     """Whether actions (B, T[, A]) played from each scene meet its task's R' (what
-    World.rollout_batch with those actions judges, nothing rendered)."""
-    cur = list(scenes)
+    World.rollout_batch with those actions judges, nothing rendered). Scenes that differ only
+    in the world's appearance concepts, given the same actions, are stepped once: the others
+    take that history with their own looks (World.appearance_concepts)."""
+    first: dict[tuple, int] = {}
+    stepped = [
+        first.setdefault(_moves(world, s, a), i)
+        for i, (s, a) in enumerate(zip(scenes, actions, strict=True))
+    ]
+    reps = sorted(set(stepped))
+    cur = [scenes[i] for i in reps]
     history = [[s] for s in cur]
     for t in range(world.horizon):
-        a = actions[:, min(t, actions.shape[1] - 1)]
+        a = actions[reps, min(t, actions.shape[1] - 1)]
         cur = world.step_batch(cur, a)
         for h, s in zip(history, cur, strict=True):
             h.append(s)
-    return [bool(world.success(task, h)) for task, h in zip(tasks, history, strict=True)]
+    of = dict(zip(reps, history, strict=True))
+    return [
+        bool(world.success(task, [scene, *(_looking(s, scene) for s in of[rep][1:])]))
+        for task, scene, rep in zip(tasks, scenes, stepped, strict=True)
+    ]
+
+
+def _moves(world: World, scene: Scene, actions: np.ndarray) -> tuple:
+    """What a replay from `scene` depends on: the actions and the scene but for its looks."""
+    looks = world.appearance_concepts
+    objects = tuple(
+        (o.slot, o.present, tuple(v for v in o.values if v[0] not in looks), o.pos)
+        for o in scene.objects
+    )
+    return (actions.tobytes(), scene.world, scene.agent, objects)
+
+
+def _looking(stepped: Scene, like: Scene) -> Scene:
+    """`stepped` with the looks (every object's values) of `like`."""
+    objects = tuple(
+        o if o.values == w.values else Obj(o.slot, o.present, w.values, o.pos)
+        for o, w in zip(stepped.objects, like.objects, strict=True)
+    )
+    return Scene(stepped.world, objects, stepped.agent)

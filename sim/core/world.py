@@ -95,6 +95,10 @@ class World(abc.ABC):
         scene_parameters: continuous scene parameters the concept space does not enumerate
             (sim.core.parameters: an object's x and y), each with its range; set with
             `with_parameters`, read back with `parameters_of` (none by default).
+        appearance_concepts: concepts that change how a scene looks, never how it moves:
+            scenes that differ only in them, stepped with the same action, give next scenes
+            that differ only in them, each object keeping its values (the sweep's expert check
+            steps one of each such group; none by default).
     """
 
     name: str
@@ -119,6 +123,7 @@ class World(abc.ABC):
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
     scene_parameters: tuple[SceneParameter, ...] = ()
+    appearance_concepts: frozenset[str] = frozenset()
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod

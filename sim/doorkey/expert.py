@@ -29,6 +29,8 @@ from sim.doorkey.layout import (
 )
 
 _ORDER = (FORWARD, LEFT, RIGHT, PICKUP, TOGGLE)  # fixed order: a deterministic plan
+_PLANS: dict[tuple, tuple[int, ...] | None] = {}  # what a plan depends on -> the plan
+PLANS_KEPT = 4096
 
 
 def _static(st: State) -> list[int]:
@@ -42,7 +44,21 @@ def _static(st: State) -> list[int]:
 
 
 def plan(st: State) -> list[int] | None:
-    """A shortest action sequence from `st` that ends on the goal, or None if there is none."""
+    """A shortest action sequence from `st` that ends on the goal, or None if there is none.
+    Planned once per layout and agent state (colours apart: the same lava cells in another
+    slot or colour give the same plan)."""
+    key = (*st.agent, st.dir, st.carrying, st.door, st.t, st.key, st.door_cell, st.goal)
+    key += tuple(sorted(c for c, _ in st.lava))
+    if key not in _PLANS:
+        if len(_PLANS) >= PLANS_KEPT:
+            _PLANS.clear()
+        found = _plan(st)
+        _PLANS[key] = None if found is None else tuple(found)
+    cached = _PLANS[key]
+    return None if cached is None else list(cached)
+
+
+def _plan(st: State) -> list[int] | None:
     if st.done():
         return None
     kinds = _static(st)
