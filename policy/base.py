@@ -33,10 +33,11 @@ import numpy as np
 import torch
 
 from policy.checkpoint import load_policy, read_config, save_policy
-from policy.model import Policy, PolicyConfig
+from policy.model import Policy
 from policy.train import (
     LossCallback,
     TrainConfig,
+    base_arch,
     base_config,
     clone_base,
     training_demos,
@@ -69,7 +70,7 @@ def _sha(text: str) -> str:
 
 def recipe(world: World, demos: list[Trajectory], *, seed: int, config: TrainConfig) -> dict:
     """What a base policy is trained from, in terms that are the same on every processor."""
-    arch = PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+    arch = base_arch(world)
     actions = [np.round(d.actions.astype(np.float64), 4).tolist() for d in demos]
     doc = {
         "world": world.name,

@@ -15,7 +15,7 @@ import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
-from policy.model import ImagePolicy, Origin, Policy, PolicyConfig
+from policy.model import HEADS, ImagePolicy, Origin, Policy, PolicyConfig
 from sim.core import UserError, World, files
 
 # what a checkpoint's architecture may ask for: (field, smallest, largest) for each integer
@@ -161,7 +161,14 @@ def config_for(folder: str | Path, world: World) -> PolicyConfig:
     """The architecture in a checkpoint's config.json, checked against `world`."""
     path = Path(folder) / "config.json"
     raw = read_config(folder)["policy"]
-    defaults = PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
+    head = raw.get("head", "flatten")  # absent: the paper's (configs written before heads)
+    if head not in HEADS:
+        raise UserError(
+            f"checkpoint {path}: head must be one of {', '.join(HEADS)}, not {json.dumps(head)}"
+        )
+    defaults = PolicyConfig(
+        world.name, world.obs_shape, world.action_dim, world.discrete, head=head
+    )
     if raw.get("world") != world.name:
         raise UserError(
             f"checkpoint {folder} is for world {json.dumps(raw.get('world'))}, not {world.name!r}"
@@ -187,7 +194,7 @@ def config_for(folder: str | Path, world: World) -> PolicyConfig:
             value = list(value)
         arch[name] = _ints(path, name, value, None if name == "hidden" else 3, lo, hi)
     arch["hidden"] = arch["hidden"][0]
-    extra = sorted(set(raw) - {"world", "obs_shape", "action_dim", "discrete", *BOUNDS})
+    extra = sorted(set(raw) - {"world", "obs_shape", "action_dim", "discrete", "head", *BOUNDS})
     if extra:
         raise UserError(f"checkpoint {path}: unknown fields {extra}")
     side = min(obs[:2])
@@ -198,7 +205,7 @@ def config_for(folder: str | Path, world: World) -> PolicyConfig:
                 f"checkpoint {path}: kernels {list(arch['kernels'])} and strides "
                 f"{list(arch['strides'])} do not fit {obs[0]}x{obs[1]} observations"
             )
-    return PolicyConfig(world.name, obs, action_dim, world.discrete, **arch)
+    return PolicyConfig(world.name, obs, action_dim, world.discrete, head=head, **arch)
 
 
 def check_weights(folder: Path, doc: dict) -> None:

@@ -32,15 +32,25 @@ class PolicyConfig:
     strides: tuple[int, int, int] | None = None
     """Their strides; None: as `kernels` (the paper's (4, 2, 1))."""
     hidden: int = 100
+    head: str = "flatten"
+    """What the trunk's feature maps become before the hidden layer (HEADS): "flatten", the
+    paper's, every cell of every map; "spatial_softmax", each map's expected (x, y) under a
+    softmax over its cells (Levine et al. 2016's keypoints), with a finer trunk by default
+    (SPATIAL_TRUNK): where small things are, not what every cell holds."""
 
     def __post_init__(self) -> None:
         if self.kernels is None or self.strides is None:
-            kernels, strides = fitted_trunk(self.obs_shape)
+            kernels, strides = fitted_trunk(self.obs_shape, self.head)
             object.__setattr__(self, "kernels", self.kernels or kernels)
             object.__setattr__(self, "strides", self.strides or strides)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """As config.json holds it: without `head` where it is the paper's, so that the
+        configs and recipes written before heads were chosen read back the same."""
+        doc = asdict(self)
+        if self.head == "flatten":
+            del doc["head"]
+        return doc
 
 
 TRUNKS = (
@@ -53,6 +63,10 @@ TRUNKS = (
     ((1, 1, 1), (1, 1, 1)),  # any
 )
 """Kernels and strides from the paper's trunk down, each fitting smaller frames."""
+SPATIAL_TRUNK = ((8, 4, 3), (2, 2, 1))
+"""The spatial-softmax head's trunk where it fits (84 px frames: 16 x 16 maps, not the paper
+trunk's 7 x 7): keypoints finer than a few pixels of the frame."""
+HEADS = ("flatten", "spatial_softmax")
 
 
 def smallest_side(kernels, strides) -> int:
@@ -63,15 +77,37 @@ def smallest_side(kernels, strides) -> int:
     return side
 
 
-def fitted_trunk(obs_shape) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+def fitted_trunk(
+    obs_shape, head: str = "flatten"
+) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
     """(kernels, strides): the first of TRUNKS whose convolutions fit frames of `obs_shape`
     (H, W, 3), judged by the smaller side: the paper's trunk wherever it fits, so that every
-    policy that could be built before is built the same."""
+    policy that could be built before is built the same (the spatial-softmax head: first
+    SPATIAL_TRUNK)."""
     side = min(int(obs_shape[0]), int(obs_shape[1]))
-    for kernels, strides in TRUNKS:
+    first = (SPATIAL_TRUNK,) if head == "spatial_softmax" else ()
+    for kernels, strides in (*first, *TRUNKS):
         if smallest_side(kernels, strides) <= side:
             return kernels, strides
     return TRUNKS[-1]
+
+
+class SpatialSoftmax(nn.Module):
+    """(B, C, H, W) feature maps -> (B, 2C): each map's expected (x, y) in [-1, 1] under a
+    softmax over its cells, at a learnt temperature."""
+
+    def __init__(self, h: int, w: int) -> None:
+        super().__init__()
+        ys, xs = torch.meshgrid(
+            torch.linspace(-1.0, 1.0, h), torch.linspace(-1.0, 1.0, w), indexing="ij"
+        )
+        self.register_buffer("grid", torch.stack([xs.reshape(-1), ys.reshape(-1)], 1), False)
+        self.log_temperature = nn.Parameter(torch.zeros(()))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c = x.shape[:2]
+        weights = torch.softmax(x.reshape(b, c, -1) / self.log_temperature.exp(), dim=-1)
+        return (weights @ self.grid).reshape(b, 2 * c)  # (B, C, HW) @ (HW, 2)
 
 
 class ImagePolicy(nn.Module):
@@ -89,8 +125,15 @@ class ImagePolicy(nn.Module):
         for c, k, s in zip(config.channels, config.kernels, config.strides, strict=True):
             layers += [nn.Conv2d(c_in, c, k, s), nn.GroupNorm(8, c), nn.ReLU()]
             c_in = c
-        self.trunk = nn.Sequential(*layers, nn.Flatten())
         h, w, _ = config.obs_shape
+        if config.head == "spatial_softmax":
+            layers.pop()  # the softmax takes the last maps as they are, negative cells too
+            with torch.no_grad():
+                maps = nn.Sequential(*layers)(torch.zeros(1, 3, h, w)).shape[-2:]
+            layers.append(SpatialSoftmax(*maps))
+        else:
+            layers.append(nn.Flatten())
+        self.trunk = nn.Sequential(*layers)
         with torch.no_grad():
             n_flat = self.trunk(torch.zeros(1, 3, h, w)).shape[1]
         self.head = nn.Sequential(

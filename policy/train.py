@@ -79,9 +79,7 @@ def behaviour_clone(
             )
         net = init.copy().net
     else:
-        net = ImagePolicy(
-            PolicyConfig(world.name, world.obs_shape, world.action_dim, world.discrete)
-        )
+        net = ImagePolicy(base_arch(world))
     net.train()
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     x_all = torch.from_numpy(obs)
@@ -222,6 +220,14 @@ def clone_base(
         return behaviour_clone(world, demos, config=config, on_loss=on_loss)
     tasks = training_tasks(world, seed)
     return dagger(world, demos, tasks, rounds=rounds, config=config, on_loss=on_loss)
+
+
+def base_arch(world: World) -> PolicyConfig:
+    """The architecture a policy cloned for `world` has: the paper's CNN with the head the
+    world's cloning asks for (World.cloning.head)."""
+    return PolicyConfig(
+        world.name, world.obs_shape, world.action_dim, world.discrete, head=world.cloning.head
+    )
 
 
 def base_steps(world: World) -> int:

@@ -41,6 +41,9 @@ class Cloning:
     closed-loop on the state labels any scene) and clones again on everything so far, from the
     policy so far, `steps` more gradient steps. Still behaviour cloning on the scripted expert;
     0: plain cloning."""
+    head: str = "flatten"
+    """The policy's head (policy.model.HEADS): "flatten", the paper's; "spatial_softmax",
+    keypoints of the trunk's maps, for frames where what matters is a few pixels wide."""
 
 
 @dataclass(frozen=True)
