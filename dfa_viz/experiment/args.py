@@ -179,7 +179,7 @@ class UnplantedArgs:
     prior: Path | None = None
     """A learned prior file (`dfa prior`); default: fitted here on --prior-tasks planted tasks."""
     prior_tasks: int = 20
-    """Planted size-2 tasks the prior is fitted on when no --prior is given."""
+    """Planted size-2 tasks the prior is fitted on when no --prior is given (0: no prior)."""
     tries: int = 2000
     """Candidates drawn at most to find --tasks failing ones."""
     out: Path = Path("recordings/experiments/unplanted")

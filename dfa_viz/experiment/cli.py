@@ -87,9 +87,10 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
     from sim.core import UserError, check_seed
 
     check_seed(args.seed)
-    for flag, value in (("--tasks", args.tasks), ("--prior-tasks", args.prior_tasks)):
-        if value < 1:
-            raise UserError(f"{flag} must be at least 1, not {value}")
+    if args.tasks < 1:
+        raise UserError(f"--tasks must be at least 1, not {args.tasks}")
+    if args.prior_tasks < 0:
+        raise UserError(f"--prior-tasks must be 0 (no prior) or more, not {args.prior_tasks}")
     if args.tries < args.tasks:
         raise UserError(f"--tries {args.tries} is fewer than --tasks {args.tasks}")
     if args.out.exists() and not args.out.is_dir():
@@ -103,6 +104,8 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
     t0 = time.perf_counter()
     if args.prior is not None:
         prior, prior_text = LearnedPrior.load(args.prior, world), str(args.prior)
+    elif args.prior_tasks == 0:
+        prior, prior_text = None, "none"
     else:
         from search.planted import fit_on_planted
 

@@ -9,12 +9,14 @@ Per failing task (all distinct), one row of tasks.csv:
 - the counterfactual search (search.counterfactual_search, the world's defaults, up to size 2):
   whether its best edit is a minimal ground-truth edit, whether it restores success at all,
   its size against the minimal size, its rollouts;
-- the learned prior (search.prior, fitted on planted size-2 tasks of seeds disjoint from these):
-  the rank of the first ground-truth edit among the edits of the minimal size in the prior's
-  order, beside plain enumeration's.
+- the learned prior (search.prior, fitted on planted size-2 tasks of seeds disjoint from these;
+  none: not measured): the rank of the first ground-truth edit among the edits of the minimal
+  size in the prior's order, beside plain enumeration's.
 Per task, saliency method and readout, one row of saliency.csv: whether the first concept of
 the readout's ranking (policy.concept_saliency, the explainer benchmark's readouts) belongs to
 an object a minimal ground-truth edit changes (object top-1); a seeded random order is the floor.
+A policy the saliency methods cannot take apart (policy.saliency.check_explainable: an outside
+agent's network) has no saliency rows, the random floor's included.
 The table is unplanted_table.
 """
 
@@ -90,6 +92,9 @@ def measure(
     best = result.best.edit if result.best is not None else None
     prior_rank = enum_rank = n_at = None
     if gt.size is not None:
+        enum_order = list(combinations(world.space, task.scene, gt.size))
+        enum_rank, n_at = rank_in(enum_order, set(gt.edits)), len(enum_order)
+    if gt.size is not None and prior is not None:
         tried = [c for c in result.tried if c.edit.size == 1]
         every = singles(world.space, task.scene)
         if len(tried) < len(every):
@@ -98,8 +103,6 @@ def measure(
         costs = prior.costs(world.space, tried, unedited)
         order = list(combinations(world.space, task.scene, gt.size, prior=costs, grouped=False))
         prior_rank = rank_in(order, set(gt.edits))
-        enum_rank = rank_in(list(combinations(world.space, task.scene, gt.size)), set(gt.edits))
-        n_at = len(order)
     tid = task_id(task)
     row = {
         "world": world.name,
@@ -139,7 +142,13 @@ def _saliency(world, policy, task, demo, gt: GroundTruth, methods, *, seed: int)
     """Object top-1 per method and readout against the ground truth's objects; none without a
     ground truth (nothing to name)."""
     from policy.concept_saliency import frame_maps, prepare, readouts
+    from policy.saliency import check_explainable
+    from sim.core import UserError
 
+    try:
+        check_explainable(policy)
+    except UserError:
+        return []
     if gt.size is None:
         return []
     rollout = world.rollout(task, policy)

@@ -197,7 +197,9 @@ def _saliency_tables(groups, sals: list[dict]) -> list[str]:
         "",
         "On tasks with a ground truth: the first concept of each readout (policy."
         "concept_saliency, the explainer benchmark's) belongs to an object a minimal "
-        "ground-truth edit changes. An edit that adds an object has no pixels to point at.",
+        "ground-truth edit changes. An edit that adds an object has no pixels to point at. "
+        "A dash: no row (no task with a ground truth, or a policy whose network the saliency "
+        "methods cannot take apart, such as an outside SB3 agent).",
     ]
     for reading, span in READOUTS:
         out += [

@@ -44,6 +44,7 @@ def test_one_task_measured_into_a_folder(nav, nav_policy, tmp_path):
         (["--kind", "moved", "--world", "nosuch"], "nosuch"),
         (["--tries", "1", "--tasks", "2"], "--tries 1 is fewer than --tasks 2"),
         (["--seed", "-1"], "seed must be an integer"),
+        (["--prior-tasks", "-1"], "--prior-tasks must be 0 (no prior) or more, not -1"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(args, message, capsys, tmp_path):
