@@ -138,6 +138,15 @@ def capabilities(world) -> None:
         "action_names: () or one name per continuous action dimension (discrete: per action)",
     )
     expect(set(world.shifts) <= set(SHIFTS), f"shifts {world.shifts} must be among {SHIFTS}")
+    if world.scene_parameters:  # a scene's own values are within range and set back alike
+        scene = world.sample_scene(0)
+        values = world.parameters_of(scene)
+        expect(
+            len(values) == len(world.scene_parameters)
+            and world.parameters_of(world.with_parameters(scene, values)) == values,
+            "scene_parameters: parameters_of(with_parameters(scene, parameters_of(scene))) "
+            "must read back the scene's own values",
+        )
     expect(world.benchmark == bool(world.shifts), "a Benchmark makes shifts; a plain World none")
     names = [s.name for s in world.space.slots]
     expect(len(names) == len(set(names)), f"slot names repeat: {names}")
