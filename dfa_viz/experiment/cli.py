@@ -111,8 +111,37 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
 
         prior, _ = fit_on_planted(world, policy, n=args.prior_tasks)
         prior_text = f"fitted on {args.prior_tasks} planted tasks"
+    command = (
+        f"dfa experiment unplanted --world {world.name} --kind {args.kind} --tasks {args.tasks} "
+        f"--seed {args.seed}"
+        + (f" --policy {args.policy}" if args.policy else "")
+        + (f" --prior {args.prior}" if args.prior else f" --prior-tasks {args.prior_tasks}")
+        + f" --out {args.out}"
+    )
     bar = tqdm(total=args.tasks, desc=f"{world.name} {args.kind}", unit="task")
-    rows, sal, drawn = run_world(
+
+    def write(rows: list[dict], sal: list[dict], drawn: int) -> tuple:
+        """The rows so far into OUT (an interrupted run keeps the tasks it finished)."""
+        bar.update(1)
+        run = {
+            "world": world.name,
+            "policy": args.policy or "base",
+            "kind": args.kind,
+            "command": command,
+            "tasks": len(rows),
+            "candidates": drawn,
+            "wall_s": round(time.perf_counter() - t0, 1),
+            "prior": prior_text,
+        }
+        return merge(args.out, rows, sal, run)
+
+    written: tuple = ()
+
+    def on_task(rows: list[dict], sal: list[dict], drawn: int) -> None:
+        nonlocal written
+        written = write(rows, sal, drawn)
+
+    run_world(
         world,
         policy,
         args.kind,
@@ -121,27 +150,10 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
         prior=prior,
         policy_name=args.policy or "base",
         tries=args.tries,
-        on_task=lambda row: bar.update(1),
+        on_task=on_task,
     )
     bar.close()
-    command = (
-        f"dfa experiment unplanted --world {world.name} --kind {args.kind} --tasks {args.tasks} "
-        f"--seed {args.seed}"
-        + (f" --policy {args.policy}" if args.policy else "")
-        + (f" --prior {args.prior}" if args.prior else f" --prior-tasks {args.prior_tasks}")
-        + f" --out {args.out}"
-    )
-    run = {
-        "world": world.name,
-        "policy": args.policy or "base",
-        "kind": args.kind,
-        "command": command,
-        "tasks": len(rows),
-        "candidates": drawn,
-        "wall_s": round(time.perf_counter() - t0, 1),
-        "prior": prior_text,
-    }
-    for path in merge(args.out, rows, sal, run):
+    for path in written:
         print(f"  {path}")
 
 

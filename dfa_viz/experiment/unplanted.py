@@ -182,10 +182,10 @@ def run_world(
     policy_name: str,
     tries: int,
     methods: Sequence[str] = METHODS,
-    on_task: Callable[[dict], None] | None = None,
+    on_task: Callable[[list[dict], list[dict], int], None] | None = None,
 ) -> tuple[list[dict], list[dict], int]:
     """n failing tasks of `kind` measured: (tasks.csv rows, saliency.csv rows, candidates
-    drawn to find them)."""
+    drawn to find them); `on_task(rows, saliency rows, drawn)` after each task, all so far."""
     from search.unplanted import candidate_seed, failing
 
     rows, sal = [], []
@@ -198,5 +198,5 @@ def run_world(
         sal += srows
         last = u.task.seed
         if on_task is not None:
-            on_task(row)
+            on_task(rows, sal, last - candidate_seed(seed, 0) + 1)
     return rows, sal, last - candidate_seed(seed, 0) + 1

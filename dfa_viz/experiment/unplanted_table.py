@@ -51,8 +51,17 @@ def _csv(rows: list[dict], columns: Sequence[str]) -> str:
 
 
 def merge(out: Path, rows: list[dict], sal: list[dict], run: dict) -> tuple[Path, ...]:
-    """Replace the rows of the run's (world, policy, kind) in OUT and rebuild the table."""
+    """Replace the rows of the run's (world, policy, kind) in OUT and rebuild the table, under
+    an exclusive lock on OUT/.lock (runs of other worlds may write the same folder)."""
+    import fcntl
+
     out.mkdir(parents=True, exist_ok=True)
+    with (out / ".lock").open("a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _merge(out, rows, sal, run)
+
+
+def _merge(out: Path, rows: list[dict], sal: list[dict], run: dict) -> tuple[Path, ...]:
     key = (run["world"], run["policy"], run["kind"])
     tasks = [r for r in read_csv(out / "tasks.csv", TASK_COLUMNS) if _key(r) != key] + rows
     sals = [r for r in read_csv(out / "saliency.csv", SALIENCY_COLUMNS) if _key(r) != key] + sal
