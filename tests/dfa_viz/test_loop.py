@@ -1,8 +1,8 @@
 """The loop (Algorithm 1) on the paper's worlds: a base policy that solves its training tasks
 and fails shifted ones of every kind, the planted cause found, feedback and finetuning that
 help, and `dfa run --json` writing a recording; one test per contract, run on every paper
-world (sim.PAPER_WORLDS), and each world's own checks below them. The loop's steps, one task
-through `dfa run`, the page and the experiment, and the recording's rows on nav2d (cheapest)."""
+world (sim.PAPER_WORLDS), and each world's own checks below them. The loop's steps on nav2d
+are in test_loop_steps.py."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import rerun as rr
 
 from dfa_viz.cli import main
 from dfa_viz.configs import AdaptConfig, Finetuning
-from dfa_viz.loop import RunRecord, run_loop
+from dfa_viz.loop import run_loop
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from search import SearchConfig, counterfactual_search, singles
@@ -345,118 +345,3 @@ def test_tabletop_dfa_run_recording_holds_the_scene_in_3d(cli_run):
     rows = chunks["/scene3d/demonstration/object"]
     moves = _column([c for c in rows if "sim_time" in c], "Transform3D:translation")
     assert len(moves) >= 10 and max(v[0][2] for v in moves) > 0.1
-
-
-# -- the loop's steps, on nav2d ---------------------------------------------------------------
-def test_tr_feedback_augments_nothing(nav, nav_policy):
-    task, _ = failing_test_task(nav, nav_policy, "object_tr", 0)
-    record = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0)
-    assert [lab.relevant for lab in record.feedback.labels] == [True]
-    assert record.adaptation.augmented == ()
-
-
-def test_other_shift_has_no_feedback_to_give(nav, nav_policy):
-    task, _ = failing_test_task(nav, nav_policy, "other", 0)
-    record = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0)
-    assert record.to_json()["counterfactual"] == [] and record.feedback.labels == ()
-
-
-def test_a_record_passes_through_its_stages(nav, nav_policy):
-    from dfa_viz.loop import demonstrated, judged, start
-
-    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
-    r = start(nav, nav_policy, task, shift="object_ti", seed=0)
-    assert isinstance(r, RunRecord) and r.stage == "judge"
-    assert judged(r, False).stage == "solved" and r.stage == "judge"  # a new record each time
-    r = judged(r, True)
-    assert r.stage == "demonstrate"
-    r = demonstrated(r, nav.demonstrate(task))
-    assert r.stage == "diagnose"
-    miss = dataclasses.replace(nav.demonstrate(task), success=False)
-    with pytest.raises(Exception, match="does not succeed at what the task asks"):
-        demonstrated(judged(start(nav, nav_policy, task, shift="object_ti", seed=0), True), miss)
-
-
-def test_simulated_user_accuracy_flips_labels(nav, nav_policy):
-    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
-    edit = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0).edit
-    always_wrong = SimulatedUser(nav, accuracy=0.0).label(task, edit)
-    assert [lab.relevant for lab in always_wrong.labels] == [True]
-    always_right = SimulatedUser(nav, accuracy=1.0).label(task, edit)
-    assert [lab.relevant for lab in always_right.labels] == [False]
-
-
-def test_same_seed_same_record(nav, nav_policy):
-    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 1)
-    a = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
-    b = run_loop(nav, nav_policy, task, SimulatedUser(nav, seed=1), seed=1)
-    assert a.to_json() == b.to_json() and a.adaptation.losses == b.adaptation.losses
-
-
-def test_large_searches_are_recorded_as_rows(nav, nav_policy, tmp_path, monkeypatch):
-    import rerun as rr
-
-    from dfa_viz import recording
-
-    monkeypatch.setattr(recording, "DETAIL_LIMIT", 5)
-    monkeypatch.setattr(recording, "DETAIL_BEST", 2)
-    task, _ = failing_test_task(nav, nav_policy, "other", 0)
-    record = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0)
-    recording.write_recording(tmp_path / "run.rrd", nav, record)
-    rows, traces = 0, set()
-    for chunk in rr.chunk.RrdReader(tmp_path / "run.rrd").store().stream():
-        path = str(chunk.entity_path)
-        if path == "/search/all":
-            rows += chunk.num_rows
-        elif path.startswith("/search/candidates/c"):
-            traces.add(path)
-    assert rows == len(record.diagnosis.result.tried) > 5
-    assert len(traces) == 2  # no valid candidate here: only the two closest keep a trace
-
-
-def test_one_task_gives_one_answer_through_dfa_run_the_page_and_the_experiment(nav, tmp_path):
-    """The same counterfactual, the same variants and the same success figures, equal (not
-    close): `dfa run`, the page's jobs and the experiment's Oracle run all call the loop's
-    steps with the same defaults."""
-    from dfa_viz.app.server import open_state, wait_idle
-    from dfa_viz.assemble import run_once
-    from dfa_viz.configs import RunArgs
-    from dfa_viz.experiment import runner
-    from policy.variants import acceptable_if_irrelevant
-
-    cli = run_once(RunArgs(world="nav2d", shift="object_ti", seed=0, out=tmp_path), progress=False)
-
-    state = open_state(session=tmp_path / "s", out=tmp_path)
-    try:
-        state.pick("nav2d", "object_ti", 0)
-        wait_idle(state, timeout_s=1200)  # a ceiling: the job takes seconds
-        state.judge(True)
-        state.demonstrate(expert=True)
-        wait_idle(state, timeout_s=1200)
-        for c in state.record.edit.ordered:  # as the simulated user of `dfa run` marks it
-            values = acceptable_if_irrelevant(nav, cli.task.reward, c.slot, c.concept)
-            state.mark(c.slot, c.concept, relevant=False, acceptable=values)
-        assert state.finetune()
-        wait_idle(state, timeout_s=1200)
-        page = state.record
-    finally:
-        state.close()
-
-    row = runner.run_one(runner.RunSpec("nav2d", "object", "oracle", 25, 0))
-
-    assert page.task == cli.task
-    assert [c.edit for c in page.diagnosis.result.counterfactuals] == [
-        c.edit for c in cli.diagnosis.result.counterfactuals
-    ]
-    assert page.feedback == cli.feedback
-    for a, b in zip(page.adaptation.augmented, cli.adaptation.augmented, strict=True):
-        assert a.scenes == b.scenes and np.array_equal(a.observations, b.observations)
-    assert page.adaptation.losses == cli.adaptation.losses
-    assert page.evaluation == cli.evaluation
-    j = cli.to_json()
-    assert row["success"] == f"{j['success_after']:.4g}"
-    assert row["success_before"] == f"{j['success_before']:.4g}"
-    assert row["success_all"] == f"{j['success_all_after']:.4g}"
-    assert row["n_distinct"] == str(1 + len(cli.adaptation.augmented))
-    assert row["final_loss"] == f"{cli.adaptation.losses[-1]:.6g}"
-    assert j["success_after"] - j["success_before"] >= 0.2 - 1e-9  # 0.4 -> 0.7 measured
