@@ -70,6 +70,7 @@ class Probe:
 
     task: int
     values: tuple[float, ...]
+    """The parameters of the scene rolled out (a world that projects them: as projected)."""
     failed: bool
     """The policy failed R' and the expert (where the world has one) did not."""
     expert_failed: bool = False
@@ -155,10 +156,11 @@ def probe(
     tasks = [hoods.task(k, v) for k, v in cands]
     runs = roll(world, act, tasks, [t.scene for t in tasks])
     out = []
-    for (k, v), t, r in zip(cands, tasks, runs, strict=True):
+    for (k, _), t, r in zip(cands, tasks, runs, strict=True):
         expert_failed = False
         if not r.success and isinstance(world, Benchmark):
             expert_failed = not world.demonstrate(t).success
+        v = tuple(world.parameters_of(t.scene))  # as placed (DoorKey: on its rows)
         out.append(Probe(k, v, not r.success and not expert_failed, expert_failed))
     return out
 

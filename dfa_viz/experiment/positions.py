@@ -82,8 +82,12 @@ def run_positions(args: PositionsArgs) -> dict:
                 }
             )
             say(f"{world.name} {name} seed {seed}: {per_seed[-1]['failures']} failures")
-            if name == "surrogate" and seed == 0:
-                first = [p for p in probes if p.failed]
+            if name == "surrogate" and seed == 0:  # its failures, the first of each cell
+                cells = {}
+                for p in probes:
+                    if p.failed:
+                        cells.setdefault(hoods.cell(p), p)
+                first = list(cells.values())
         runs.append({"name": name, "seeds": per_seed})
     for run in runs:
         for key in ("failures", "distinct"):

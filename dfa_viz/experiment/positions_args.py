@@ -10,14 +10,16 @@ from pathlib import Path
 class PositionsArgs:
     """Search a world's continuous scene parameters (where objects stand) for failures.
 
-    Near TASKS training tasks (seeds 0, 1, ...), each parameter the world declares (`dfa worlds`
-    lists them; nav2d: the goal's and the agent's x and y, the tabletop: the object's and the
-    goal's) moved by up to SPREAD of its range: a random-forest surrogate refitted as outcomes
-    come in (FATE's manner) against uniform sampling of the same neighbourhoods, BUDGET
-    rollouts each, over SEEDS seeds (a failure: the policy fails the task where the world's
-    expert does not). The first DIAGNOSE failures the surrogate found on seed 0 are diagnosed
-    by the counterfactual search against the expert's demonstration (edits of up to 2 concept
-    changes), the minimal edit replayed to see whether it restores success.
+    Near TASKS training tasks (seeds 0, 1, ...), each parameter the world declares
+    (World.scene_parameters; nav2d: the goal's and the agent's x and y, the tabletop: the
+    object's and the goal's, DoorKey: the key's, door's and goal's rows) moved by up to SPREAD
+    of its range: a random-forest surrogate refitted as outcomes come in (FATE's manner)
+    against uniform sampling of the same neighbourhoods, BUDGET rollouts each, over SEEDS seeds
+    (a failure: the policy fails the task where the world's expert does not). The first
+    DIAGNOSE failures the surrogate found on seed 0 (the first in each distinct cell,
+    search.scene_search.Neighbourhoods.cell) are diagnosed by the counterfactual search
+    against the expert's demonstration (edits of up to 2 concept changes), the minimal edit
+    replayed to see whether it restores success.
 
     Writes OUT/<world>.json, then OUT/table.md and OUT/failures.png from every world's JSON in
     OUT (run it once per world into the same folder).

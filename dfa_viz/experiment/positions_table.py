@@ -58,7 +58,8 @@ def table_md(records: list[dict]) -> str:
         "",
         "## Diagnoses",
         "",
-        "The first failures the surrogate found on seed 0, each given to the counterfactual "
+        "The first failures the surrogate found on seed 0 (the first in each distinct "
+        "cell), each given to the counterfactual "
         "search with the expert's demonstration of the failing scene (edits of up to 2 "
         "concept changes; the world's candidate limit or the one given). The edit shown is "
         "the best ranked minimal edit whose rollout succeeds at the task; 'restores' says "
