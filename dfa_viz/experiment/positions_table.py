@@ -3,25 +3,16 @@ JSON in its folder."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from dfa_viz.records import figure_text, load_records
 from sim.core import files
 
 NAMES = {"uniform": "uniform sampling", "surrogate": "random-forest surrogate (FATE-style)"}
 
 
-def load_records(out: Path) -> list[dict]:
-    order = {"nav2d": 0, "doorkey": 1, "tabletop": 2}
-    records = [json.loads(f.read_text()) for f in sorted(out.glob("*.json"))]
-    return sorted(records, key=lambda r: (order.get(r["world"], 3), r["world"]))
-
-
 def _fig(f: dict, digits: int = 1) -> str:
-    mean, low, high = f["mean"], f["low"], f["high"]
-    if abs(high - low) < 1e-9:
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} ({low:.{digits}f} to {high:.{digits}f})"
+    return figure_text(f, digits, to=" to ", grouped=False)
 
 
 def table_md(records: list[dict]) -> str:

@@ -13,6 +13,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from dfa_viz.checked_policy import checked_policy
+from dfa_viz.records import figure_text, load_records
 from dfa_viz.sweep.args import SearchArgs
 from dfa_viz.sweep.run import SweepJob, backend_runner
 from search.sweep import plan, summarise, sweep_tasks
@@ -128,20 +129,8 @@ def run_search_comparison(args: SearchArgs) -> dict:
     return record
 
 
-def load_records(out: Path) -> list[dict]:
-    """Every world's JSON in the folder, in the paper's order then by name."""
-    order = {"nav2d": 0, "doorkey": 1, "tabletop": 2}
-    records = [json.loads(f.read_text()) for f in sorted(out.glob("*.json"))]
-    return sorted(records, key=lambda r: (order.get(r["world"], 3), r["world"]))
-
-
 def _fig(f: dict, digits: int = 0) -> str:
-    mean, low, high = f["mean"], f["low"], f["high"]
-    if mean != mean:
-        return "–"
-    if abs(high - low) < 1e-9:
-        return f"{mean:,.{digits}f}"
-    return f"{mean:,.{digits}f} ({low:,.{digits}f}–{high:,.{digits}f})"
+    return figure_text(f, digits)
 
 
 def table_md(records: list[dict]) -> str:
