@@ -114,8 +114,9 @@ def read_config(folder: str | Path) -> dict[str, Any]:
             return doc  # an older finetuned copy of an outside policy: see load_policy
         raise UserError(
             f'checkpoint {path}: expected a JSON object with a "policy" object '
-            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden) or an "
-            '"origin" object (kind, file, sha256: the policy from outside it was finetuned from)'
+            "(world, obs_shape, action_dim, discrete, channels, kernels, strides, hidden[, head]) "
+            'or an "origin" object (kind, file, sha256: the policy from outside it was finetuned '
+            "from)"
         )
     return doc
 
