@@ -143,8 +143,7 @@ def failing(
     seen: set = set()
     for start in range(0, tries, BATCH):
         ks = range(start, min(start + BATCH, tries))
-        drawn = [draw(world, kind, candidate_seed(seed, k)) for k in ks]
-        drawn = [d for d in drawn if d is not None]
+        drawn = [d for k in ks if (d := draw(world, kind, candidate_seed(seed, k))) is not None]
         runs = roll(world, policy.act, [t for t, _ in drawn], [t.scene for t, _ in drawn])
         for (task, changes), run in zip(drawn, runs, strict=True):
             if run.success or (task.scene, task.reward) in seen:
