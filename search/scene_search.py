@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from search.sweep.rollouts import roll
-from sim.core import Benchmark, Task, UserError, World
+from sim.core import Task, UserError, World
 from sim.core.parameters import InvalidScene
 
 Act = Callable[[np.ndarray], np.ndarray]
@@ -158,8 +158,8 @@ def probe(
     out = []
     for (k, _), t, r in zip(cands, tasks, runs, strict=True):
         expert_failed = False
-        if not r.success and isinstance(world, Benchmark):
-            expert_failed = not world.demonstrate(t).success
+        if not r.success and world.benchmark:
+            expert_failed = not world.demonstrate(t).success  # type: ignore[attr-defined]
         v = tuple(world.parameters_of(t.scene))  # as placed (DoorKey: on its rows)
         out.append(Probe(k, v, not r.success and not expert_failed, expert_failed))
     return out
