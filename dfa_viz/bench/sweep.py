@@ -1,10 +1,10 @@
 """`dfa sweep`'s speed: every single edit over 100 training tasks, against the forward-pass
 bound (the frames the sweep put through the policy, at the policy's batched throughput
-measured in the same run) and, on the worlds PHYSICS_BOUND names, against the larger of that
-and the physics bound (the world's steps and renders the sweep made, timed alone:
-dfa_viz.bench.physics). All are timed warm, the best of `repeats` (the bound's forward
-pass runs once before its clock starts; the sweep's first run pays the imports and the
-policy's first batches).
+measured in the same run) and, on worlds whose rollouts are simulated (World.simulated),
+against the larger of that and the physics bound (the world's steps and renders the sweep
+made, timed alone: dfa_viz.bench.physics). All are timed warm, the best of `repeats` (the
+bound's forward pass runs once before its clock starts; the sweep's first run pays the
+imports and the policy's first batches).
 
 Where a world's sweep is measured on more than one backend, its rollouts per second per core:
 in one process against its forward-pass bound's, on 2 worker processes and on Ray against one
@@ -24,9 +24,6 @@ SWEPT: dict[str, tuple[int, float | None, tuple[Run, ...]]] = {
     "doorkey": (100, None, (("local", 1),)),
     "tabletop": (100, 120.0, (("local", 1), ("local", 2), ("ray", 2))),
 }
-# the worlds whose sweep is measured against the larger of its forward-pass and physics bounds
-# (MuJoCo: a rollout's time goes to simulating it); the others against the forward pass alone
-PHYSICS_BOUND = frozenset({"tabletop"})
 MAX_TO_BOUND = 3.0  # every sweep within 3x of its bound
 BATCH = 512  # the sweep's rollouts per unit: the batch its forward passes see
 
@@ -90,13 +87,15 @@ def bench_sweep(
 
 def sweep_rows(name: str, *, repeats: int = 1) -> list[tuple[str, str, str, bool | None]]:
     """(what, value, target, met) for each run measured, the best of `repeats`, each against
-    its bound (on the worlds of PHYSICS_BOUND the larger of the forward-pass and physics
+    its bound (on a simulated world, World.simulated, the larger of the forward-pass and physics
     bounds, the physics bound measured once in this process); with more than one run, then
     the rollouts per second per core of each (per_core_rows)."""
     from dfa_viz.bench.physics import bench_physics
+    from sim import get_world
 
     tasks, target, runs = SWEPT[name]
-    physics = bench_physics(name, tasks=tasks, repeats=repeats) if name in PHYSICS_BOUND else None
+    simulated = get_world(name).simulated
+    physics = bench_physics(name, tasks=tasks, repeats=repeats) if simulated else None
     rows = []
     measured = []
     for backend, workers in runs:

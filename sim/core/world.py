@@ -102,6 +102,9 @@ class World(abc.ABC):
             scenes that differ only in them, stepped with the same action, give next scenes
             that differ only in them, each object keeping its values (the sweep's expert check
             steps one of each such group; none by default).
+        simulated: a rollout's steps are a physics simulation (MuJoCo), so what they cost is
+            the simulator's: `dfa bench` holds the sweep to the larger of its forward-pass
+            and physics bounds (False by default: the forward-pass bound).
     """
 
     name: str
@@ -127,6 +130,7 @@ class World(abc.ABC):
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
     scene_parameters: tuple[SceneParameter, ...] = ()
     appearance_concepts: frozenset[str] = frozenset()
+    simulated: bool = False
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod

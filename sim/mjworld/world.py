@@ -74,6 +74,7 @@ class MujocoWorld(Benchmark):
     discrete = False
     lossless_frames = False
     demo_input = "file"
+    simulated = True  # every step is the environment's own MuJoCo step
     distractors: tuple[str, ...] = ("distractor0",)
     slot_specs: tuple[SlotSpec, ...] = ()
     camera: dict | str = {}

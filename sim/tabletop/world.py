@@ -65,6 +65,7 @@ class TabletopWorld(Benchmark):
     image_extent = (-TK.VIEW_HALF_M, TK.VIEW_HALF_M, -TK.VIEW_HALF_M, TK.VIEW_HALF_M)
     action_names = ("pick x (m)", "pick y (m)", "place x (m)", "place y (m)")
     appearance_concepts = frozenset({"colour"})  # a material: drawn, never simulated
+    simulated = True  # a rollout is a pick and place in MuJoCo
     # where the object and the goal stand on the table (their rotation and height kept)
     scene_parameters = tuple(
         SceneParameter(f"{slot}.{axis}", -PARAMETER_REACH_M, PARAMETER_REACH_M, "m")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from dfa_viz.bench.physics import physics_bound_s, recorded
-from dfa_viz.bench.sweep import MAX_TO_BOUND, PHYSICS_BOUND, bound_row
+from dfa_viz.bench.sweep import MAX_TO_BOUND, bound_row
 from policy import base_policy
 from search.sweep import sweep, sweep_tasks
 from sim import get_world
@@ -33,7 +33,7 @@ def test_the_physics_bound_replays_the_steps_and_renders_the_sweep_made():
 
 
 def test_a_sweep_is_held_to_the_larger_of_its_bounds():
-    assert "tabletop" in PHYSICS_BOUND and "nav2d" not in PHYSICS_BOUND
+    assert get_world("tabletop").simulated and not get_world("nav2d").simulated
     r = {"frames": 100, "forward_per_s": 1000.0, "bound_s": 0.1, "to_forward": 40.0}
     slow = bound_row("tabletop", {**r, "physics_s": 2.0, "to_bound": 2.0}, _physics())
     assert slow[1:] == ("2.0x", f"<= {MAX_TO_BOUND:g}x", True)
