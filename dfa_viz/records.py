@@ -6,13 +6,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-PAPER_ORDER = {"nav2d": 0, "doorkey": 1, "tabletop": 2}
+from sim import PAPER_WORLDS
+
+PAPER_ORDER = {name: i for i, name in enumerate(PAPER_WORLDS)}
 
 
 def load_records(out: Path) -> list[dict]:
     """Every world's JSON in the folder, in the paper's order then by name."""
     records = [json.loads(f.read_text()) for f in sorted(out.glob("*.json"))]
-    return sorted(records, key=lambda r: (PAPER_ORDER.get(r["world"], 3), r["world"]))
+    return sorted(
+        records, key=lambda r: (PAPER_ORDER.get(r["world"], len(PAPER_WORLDS)), r["world"])
+    )
 
 
 def figure_text(f: dict, digits: int, *, to: str = "–", grouped: bool = True) -> str:
