@@ -40,12 +40,14 @@ from pathlib import Path
 import numpy as np
 
 from policy.methods import check_method
+from sim import PAPER_WORLDS
 from sim.core import UserError, check_seed
 
 CONDITIONS = ("none", "counterfactual", "saliency", "both")
 KINDS = ("object", "distractor", "other")
 DESIGNS = ("between", "within")
-PAPER_TASKS = (("nav2d", 1), ("doorkey", 1), ("tabletop", 2))
+# the paper's study: one task per gridworld, two on the tabletop, in sim.PAPER_WORLDS' order
+PAPER_TASKS = tuple(zip(PAPER_WORLDS, (1, 1, 2), strict=True))
 
 
 @dataclass(frozen=True, order=True)
