@@ -186,3 +186,13 @@ def free_port() -> int:
 def session_events(folder: Path) -> list[dict]:
     """The events of a page session folder's log, in order."""
     return [json.loads(x) for x in (folder / "session.jsonl").read_text().splitlines()]
+
+
+def same_page(a: PageWire, b: PageWire) -> None:
+    """Until both tabs show the same words and the same task controls."""
+
+    def same() -> bool:
+        controls = [(t.value("world"), t.value("shift"), t.value("seed")) for t in (a, b)]
+        return a.text() == b.text() and controls[0] == controls[1]
+
+    a.wait(same, "the same page in both tabs", CEILING_S)
