@@ -14,7 +14,9 @@ Success   the environment's own `_is_success` (the object, or the gripper in Rea
           0.05 m of the goal) at the last step
 
 Frames are the environment's own `render()` at 84 x 84 from a camera over the table (CAMERA),
-passed to the environment as its default_camera_config.
+passed to the environment as its default_camera_config; PickAndPlace's have a second 84 x 84
+view to the right of it (FRONT, across the table, low): from the first alone a target in the
+air could stand anywhere along the camera's ray.
 
 Demonstrators: sim.fetch.expert (pick and place, push, reach: closed loop on the state) and
 sim.fetch.slide (Slide: strikes chosen by stepping the world itself; it brings the puck within
@@ -54,24 +56,35 @@ class FetchTask:
     cannot be steered round it)."""
     head: str = "flatten"
     """The cloned policy's head (Cloning.head)."""
+    extra_views: tuple[dict, ...] = ()
+    """Cameras drawn beside CAMERA in every frame (MujocoWorld.extra_views)."""
 
 
-TASKS = {
-    # keypoints: 5/30 held-out tasks after 3000 steps where the flatten head solves 1/30
-    "FetchPickAndPlace-v4": FetchTask(
-        "put the block on the target", X.pick_and_place, head="spatial_softmax"
-    ),
-    "FetchPush-v4": FetchTask("push the block onto the target", X.push),
-    # the puck starts within 0.1 m of the gripper's start along x: the split is nearer it
-    "FetchSlide-v4": FetchTask("slide the puck onto the target", None, 0.0, 0.05, clear_path=True),
-    "FetchReach-v4": FetchTask("move the gripper to the target", X.reach),
-}
 SIZE_PX = 84
 CAMERA = {  # from the side, over the table: the arm hides little of the workspace
     "distance": 0.9,
     "azimuth": 90.0,
     "elevation": -50.0,
     "lookat": np.array([1.32, 0.75, 0.45]),
+}
+FRONT = {  # facing the robot across the table, low: how high the gripper and target are
+    **CAMERA,
+    "azimuth": 180.0,
+    "elevation": -25.0,
+}
+
+TASKS = {
+    # keypoints: 5/30 held-out tasks after 3000 steps where the flatten head solves 1/30
+    "FetchPickAndPlace-v4": FetchTask(
+        "put the block on the target",
+        X.pick_and_place,
+        head="spatial_softmax",
+        extra_views=(FRONT,),
+    ),
+    "FetchPush-v4": FetchTask("push the block onto the target", X.push),
+    # the puck starts within 0.1 m of the gripper's start along x: the split is nearer it
+    "FetchSlide-v4": FetchTask("slide the puck onto the target", None, 0.0, 0.05, clear_path=True),
+    "FetchReach-v4": FetchTask("move the gripper to the target", X.reach),
 }
 
 
@@ -118,7 +131,7 @@ class FetchWorld(MujocoWorld):
             SlotSpec("target", site="target0"),
             SlotSpec("table", body="table0"),
         )
-        self.camera = CAMERA
+        self.camera, self.extra_views = CAMERA, self.task.extra_views
         self.workspace = TK.workspace(has_object)
         super().__init__(f"fetch:{env_id}", horizon=50, action_dim=4, size_px=SIZE_PX)
 

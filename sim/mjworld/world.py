@@ -81,6 +81,9 @@ class MujocoWorld(Benchmark):
     """The camera frames are drawn from: a free camera (distance, azimuth, elevation, lookat),
     as a gymnasium MujocoEnv's default_camera_config gives it, or a camera of the model by
     name."""
+    extra_views: tuple[dict | str, ...] = ()
+    """Further cameras (as `camera`), each drawn size_px square to the right of the
+    environment's own in every frame: a view that settles what the first leaves open."""
     workspace = None
     """A sim.mjworld.tasks.Workspace: where distractors may stand, what the shifts recolour."""
     drawn_groups: tuple[int, ...] = (0, 1, 2)
@@ -89,7 +92,7 @@ class MujocoWorld(Benchmark):
 
     def __init__(self, name: str, *, horizon: int, action_dim: int, size_px: int) -> None:
         self.name, self.horizon, self.action_dim = name, horizon, action_dim
-        self.obs_shape = (size_px, size_px, 3)
+        self.obs_shape = (size_px, size_px * (1 + len(self.extra_views)), 3)
         self.size_px = size_px
         self._lock = threading.RLock()
         self._env = None
@@ -254,9 +257,10 @@ class MujocoWorld(Benchmark):
         moved to the goal); nothing by default."""
 
     def _renderer(self):
-        """One mujoco.Renderer on the environment's model, its camera (a free one set as the
-        environment's default_camera_config sets its own, or the model's camera of that name)
-        and the geom groups it draws: the same pixels as its render()."""
+        """One mujoco.Renderer on the environment's model, its cameras (the environment's own
+        first, then `extra_views`; each a free one set as the environment's
+        default_camera_config sets its own, or the model's camera of that name) and the geom
+        groups it draws: the first view's pixels are those of its render()."""
         if self._camera is None:
             import mujoco
 
@@ -266,35 +270,32 @@ class MujocoWorld(Benchmark):
             renderer = mujoco.Renderer(model, self.size_px, self.size_px)
             release_egl()  # the constructor left the context current in this thread
             atexit.register(renderer.close)  # before EGL itself is let go at exit
-            cam = self.camera
-            if isinstance(cam, dict):
-                cam = mujoco.MjvCamera()
-                cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-                for key, value in self.camera.items():
-                    if key == "lookat":
-                        cam.lookat[:] = value
-                    else:
-                        setattr(cam, key, value)
+            cams = [_camera(c) for c in (self.camera, *self.extra_views)]
             option = mujoco.MjvOption()
             option.geomgroup[:] = [
                 int(g in self.drawn_groups) for g in range(len(option.geomgroup))
             ]
-            self._camera = (renderer, cam, option)
+            self._camera = (renderer, cams, option)
         return self._camera
 
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
-        """uint8 (B, H, W, 3): the environment's camera on each scene."""
+        """uint8 (B, H, W, 3): the environment's camera on each scene (and its extra views to
+        the right of it, W = size_px times the number of views)."""
         from sim.mjworld.gl import current
 
+        size = self.size_px
         out = np.empty((len(scenes), *self.obs_shape), np.uint8)
+        view = np.empty((size, size, 3), np.uint8)
         with self._lock:
-            renderer, cam, option = self._renderer()
+            renderer, cams, option = self._renderer()
             with current(renderer):
                 for b, scene in enumerate(scenes):
                     env = self.restore(scene)
                     self.before_render(env)
-                    renderer.update_scene(self.physics(env)[1], camera=cam, scene_option=option)
-                    renderer.render(out=out[b])
+                    for k, cam in enumerate(cams):
+                        renderer.update_scene(self.physics(env)[1], camera=cam, scene_option=option)
+                        renderer.render(out=view)
+                        out[b, :, k * size : (k + 1) * size] = view
         return out
 
     # -- dynamics -----------------------------------------------------------------------------
@@ -352,3 +353,21 @@ class MujocoWorld(Benchmark):
         from sim.mjworld import tasks as MT
 
         return MT.placements(self, task, demo)
+
+
+def _camera(camera: dict | str):
+    """What mujoco.Renderer.update_scene takes for `camera`: a free MjvCamera set from a
+    default_camera_config-like dict (distance, azimuth, elevation, lookat), or the model's
+    camera of that name as it is."""
+    if isinstance(camera, str):
+        return camera
+    import mujoco
+
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    for key, value in camera.items():
+        if key == "lookat":
+            cam.lookat[:] = value
+        else:
+            setattr(cam, key, value)
+    return cam

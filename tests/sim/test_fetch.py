@@ -21,11 +21,11 @@ def world():
     return sim.get_world(PICK)
 
 
-def _stock(env_id: str):
+def _stock(env_id: str, camera: dict = CAMERA):
     """The environment as gymnasium makes it, with the same camera."""
     register_robotics()
     return gymnasium.make(
-        env_id, render_mode="rgb_array", width=84, height=84, default_camera_config=CAMERA
+        env_id, render_mode="rgb_array", width=84, height=84, default_camera_config=camera
     ).unwrapped
 
 
@@ -34,6 +34,25 @@ def _render(stock) -> np.ndarray:
     renderer lets its own go after each batch)."""
     stock.mujoco_renderer._get_viewer("rgb_array").make_context_current()
     return stock.render()
+
+
+def _stock_views(stock, others) -> np.ndarray:
+    """The stock environment's render() beside that of a stock environment built with each of
+    the world's extra views as its camera, put in the same state: what the world's frame
+    holds."""
+    import mujoco
+
+    frames = [_render(stock)]
+    for other in others:
+        other.data.qpos[:], other.data.qvel[:] = stock.data.qpos, stock.data.qvel
+        other.data.mocap_pos[:], other.data.mocap_quat[:] = (
+            stock.data.mocap_pos,
+            stock.data.mocap_quat,
+        )
+        other.goal = stock.goal.copy()
+        mujoco.mj_forward(other.model, other.data)
+        frames.append(_render(other))
+    return np.concatenate(frames, axis=1)
 
 
 def test_the_concept_space_is_read_from_the_model(world):
@@ -70,6 +89,7 @@ def test_a_rollout_in_dfa_is_the_environments_own(env_id, steps):
     its rollouts are compared up to the strike (15 steps), the others' to the end."""
     world = sim.get_world(f"fetch:{env_id}")
     stock = _stock(env_id)
+    others = [_stock(env_id, view) for view in world.extra_views]
     for seed in (3, 4):
         stock.reset(seed=seed)
         like = world.sample_scene(0)  # (a reset of the world's own environment)
@@ -79,7 +99,7 @@ def test_a_rollout_in_dfa_is_the_environments_own(env_id, steps):
         for t in range(steps):
             a = world.expert_action(task, scene) + rng.normal(0, 0.2, 4).astype(np.float32)
             a = np.clip(a, -1, 1).astype(np.float32)
-            frame = _render(stock)  # an image policy's loop: render, act, step
+            frame = _stock_views(stock, others)  # an image policy's loop: render, act, step
             if t % 10 == 0:
                 same = world.scene_of(stock_state_into(world, stock), t, like)
                 np.testing.assert_array_equal(world.render(same), frame)
@@ -118,7 +138,7 @@ def test_frames_are_the_environments_render_in_every_look(world):
     scenes = [world.test_task(shift, s).scene for shift in SHIFTS for s in range(2)]
     ours = world.render_batch(scenes)
     theirs = np.stack([world.restore(s).render() for s in scenes])
-    assert np.array_equal(ours, theirs)
+    assert np.array_equal(ours[:, :, :84], theirs)  # the environment's own camera first
     recoloured = world.test_task("object_ti", 0)
     assert not np.array_equal(
         world.render(recoloured.scene), world.render(world.train_task(0).scene)
@@ -151,7 +171,7 @@ def test_a_distractor_starts_where_the_scene_says_and_waits_out_of_view_when_abs
     assert env.data.body("distractor0").xpos[1] < -1.0  # parked far to the side
     moved = world.step_batch([absent], np.zeros((1, 4), np.float32))[0]
     assert moved.agent[world.head :] != absent.agent[world.head :]
-    assert frames_without.shape == (84, 84, 3)
+    assert frames_without.shape == (84, 168, 3)  # the side view, the front view beside it
 
 
 def test_the_striking_expert_slides_the_puck_onto_the_target():
