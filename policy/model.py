@@ -110,7 +110,23 @@ class SpatialSoftmax(nn.Module):
         return (weights @ self.grid).reshape(b, 2 * c)  # (B, C, HW) @ (HW, 2)
 
 
-class ImagePolicy(nn.Module):
+class Explainable(nn.Module):
+    """A network the saliency methods (policy.saliency) can take apart: its outputs from float
+    frames, differentiable in the pixels, and its convolutions (Grad-CAM's layer among them)."""
+
+    frame_shape: tuple[int, int, int]
+    """(H, W, 3) of the frames it takes."""
+
+    def pixels(self, obs: torch.Tensor) -> torch.Tensor:
+        """The network's outputs from float32 pixel values (B, H, W, 3) in [0, 255]."""
+        raise NotImplementedError
+
+    def convolutions(self) -> list[nn.Conv2d]:
+        """The convolutions the frames go through, in order."""
+        raise NotImplementedError
+
+
+class ImagePolicy(Explainable):
     """uint8 (B, H, W, 3) -> actions float32 (B, A) or logits float32 (B, n_actions).
 
     Pixel normalisation lives inside the model; GroupNorm, not BatchNorm, so that a batch of
@@ -153,6 +169,13 @@ class ImagePolicy(nn.Module):
         in the frames (what attributions take gradients of)."""
         x = obs.permute(0, 3, 1, 2) / 127.5 - 1.0  # (B, 3, H, W) in [-1, 1]
         return self.head(self.trunk(x))
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int]:  # type: ignore[override]
+        return self.config.obs_shape
+
+    def convolutions(self) -> list[nn.Conv2d]:
+        return [m for m in self.trunk if isinstance(m, nn.Conv2d)]
 
 
 @dataclass(frozen=True)

@@ -25,8 +25,11 @@ channels without abs() (Grad-CAM's map and KernelSHAP's values as they are), pos
 pixel raises the explained number (pulls the action towards the demonstration), negative where
 it pushes it away. `attribute` is the unsigned density alone.
 
-Only the project's own image policies (policy.model.ImagePolicy) can be explained: the methods
-take gradients of, or perturb, float frames. A non-finite attribution is refused (UserError).
+Only a network that declares what the methods need can be explained (policy.model.Explainable:
+its outputs from float frames, differentiable in the pixels, and its convolutions): the
+project's own image policies and outside stable-baselines3 CNN policies (policy.sb3_policy).
+The methods take gradients of, or perturb, float frames. A non-finite attribution is refused
+(UserError).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ import torch
 from torch import nn
 
 from policy.methods import METHODS, check_method  # noqa: F401 (study.protocol reads METHODS here)
-from policy.model import ImagePolicy, Policy
+from policy.model import Explainable, Policy
 from sim.core import Trajectory, UserError, World
 
 
@@ -190,7 +193,7 @@ class _Explained(nn.Module):
     demonstrated entry captum picks (discrete), or -||pi(s) - a||_2 (B,) for the demonstrated
     actions a (B, A) (continuous; +1e-12 under the root keeps its gradient finite at 0)."""
 
-    def __init__(self, net: ImagePolicy, discrete: bool) -> None:
+    def __init__(self, net: Explainable, discrete: bool) -> None:
         super().__init__()
         self.net = net
         self.discrete = discrete
@@ -208,11 +211,11 @@ def check_explainable(policy: Policy) -> None:
     _image_net(policy)
 
 
-def _image_net(policy: Policy) -> ImagePolicy:
-    if not isinstance(policy.net, ImagePolicy):
+def _image_net(policy: Policy) -> Explainable:
+    if not isinstance(policy.net, Explainable):
         raise UserError(
-            "saliency maps need one of the project's own image policies (a checkpoint folder "
-            "or a base policy); this policy's network is "
+            "saliency maps need an image policy whose network they can take apart (a checkpoint "
+            "folder, a base policy or a stable-baselines3 CnnPolicy); this policy's network is "
             f"{type(policy.net).__name__ if policy.net is not None else 'not available'}"
         )
     return policy.net
@@ -255,16 +258,15 @@ def _occlusion(model, frames, extra, config: SaliencyConfig) -> torch.Tensor:
     return attr
 
 
-def grad_cam_layer(net: ImagePolicy) -> nn.Conv2d:
-    """The trunk's last convolution whose output has more than one cell on the policy's frames
-    (the last one when every output is a single cell)."""
-    convs = [m for m in net.trunk if isinstance(m, nn.Conv2d)]
+def grad_cam_layer(net: Explainable) -> nn.Conv2d:
+    """The network's last convolution whose output has more than one cell on its frames (the
+    last one when every output is a single cell)."""
+    convs = net.convolutions()
     sizes: list[tuple[int, int]] = []
     hooks = [c.register_forward_hook(lambda _m, _i, o: sizes.append(o.shape[-2:])) for c in convs]
     try:
-        h, w, _ = net.config.obs_shape
         with torch.no_grad():
-            net.trunk(torch.zeros(1, 3, h, w))
+            net.pixels(torch.zeros(1, *net.frame_shape))
     finally:
         for hook in hooks:
             hook.remove()
@@ -272,7 +274,7 @@ def grad_cam_layer(net: ImagePolicy) -> nn.Conv2d:
     return (spatial or convs)[-1]
 
 
-def _grad_cam(model, net: ImagePolicy, frames, extra) -> torch.Tensor:
+def _grad_cam(model, net: Explainable, frames, extra) -> torch.Tensor:
     from captum.attr import LayerAttribution, LayerGradCam
 
     cam = LayerGradCam(model, grad_cam_layer(net)).attribute(

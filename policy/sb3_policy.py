@@ -24,7 +24,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from policy.model import Origin, Policy
+from policy.model import Explainable, Origin, Policy
 from policy.obs import MAX_WEIGHTS_BYTES, said, split_obs
 from policy.sb3zip import save_beside
 from sim.core import UserError
@@ -38,12 +38,20 @@ SB3_CLASSES = {
 }
 
 
-class SB3Actor(nn.Module):
-    """The action scores of a stable-baselines3 policy: PPO/A2C's logits, DQN's Q-values."""
+class SB3Actor(Explainable):
+    """The action scores of a stable-baselines3 policy: PPO/A2C's logits, DQN's Q-values.
 
-    def __init__(self, policy: nn.Module, kind: str, channels_first: bool) -> None:
+    Explainable: SB3 scales pixels by 1/255 itself (preprocess_obs: obs.float() / 255), so
+    float frames in [0, 255] give the same scores, differentiable in the pixels; its
+    convolutions are those of the features extractor the scores go through (the actor's).
+    """
+
+    def __init__(
+        self, policy: nn.Module, kind: str, channels_first: bool, frame_shape: tuple[int, int, int]
+    ) -> None:
         super().__init__()
         self.policy, self.kind, self.channels_first = policy, kind, channels_first
+        self.frame_shape = tuple(frame_shape)  # type: ignore[assignment]
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
         x = obs.permute(0, 3, 1, 2) if self.channels_first else obs  # SB3 scales pixels itself
@@ -52,6 +60,14 @@ class SB3Actor(nn.Module):
         p = self.policy
         features = p.extract_features(x, p.pi_features_extractor)
         return p.action_net(p.mlp_extractor.forward_actor(features))
+
+    def pixels(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.forward(obs)
+
+    def convolutions(self) -> list[nn.Conv2d]:
+        p = self.policy
+        extractor = p.q_net.features_extractor if self.kind == "dqn" else p.pi_features_extractor
+        return [m for m in extractor.modules() if isinstance(m, nn.Conv2d)]
 
 
 def _has_pickle(value) -> bool:
@@ -174,7 +190,7 @@ def load_sb3(path: Path, world, source: str) -> Policy:
     except (Exception, SystemExit) as e:
         raise UserError(f"{path}: cannot rebuild its {name} ({said(e)})") from None
     kind = SB3_CLASSES[(module, name)]
-    net = SB3Actor(policy.eval(), kind, channels_first)
+    net = SB3Actor(policy.eval(), kind, channels_first, world.obs_shape)
     return Policy(net, discrete=True, obs_shape=world.obs_shape, action_dim=n, source=source)
 
 
