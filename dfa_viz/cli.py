@@ -65,7 +65,8 @@ Command = Union[  # noqa: UP007 (tyro reads the union's members as subcommands)
         tyro.conf.subcommand(
             "experiment",
             description="Run one of the experiments: q2 (finetuning), explain, pair (can an "
-            "explainer tell a policy thrown by a distractor from one taught to ignore it), or "
+            "explainer tell a policy thrown by a distractor or an object's new look from one "
+            "taught to ignore it), or "
             "search (how fast other searches find the sweep's failure modes), or unplanted "
             "(the search, saliency and the learned prior on failures nobody planted), or "
             "positions (failures in continuous scene parameters, diagnosed in concepts).",

@@ -131,19 +131,28 @@ class ExplainArgs:
 
 @dataclass(frozen=True)
 class PairArgs:
-    """Can an explainer tell a policy thrown by a distractor from the same policy finetuned to
-    ignore it? For each seed, nav2d's base policy on its failing distractor_ti task and the
-    policy the loop makes from it (TI feedback, variants with and without the distractor,
-    finetuned): how far removing the distractor moves each one's actions (the ground truth),
-    and each saliency method's share of its attribution on the distractor's pixels for each
-    (by magnitude and of the blame).
+    """Can an explainer tell a policy thrown by a spurious concept from the same policy
+    finetuned to ignore it? For each world, shift and seed, the world's base policy on its
+    failing test task of the shift (a new distractor, distractor_ti; a recoloured or reshaped
+    object, object_ti) and the policy the loop makes from it (TI feedback: variants over the
+    cause's accepted values, finetuned): how far undoing the cause (the counterfactual's
+    changes to it) moves each one's actions (the ground truth), and each saliency method's
+    share of its attribution on the cause's pixels for each (by magnitude and of the blame).
 
-    Writes OUT/pair.csv (a row per seed, method and reading) and OUT/table.md (per method and
-    reading, on how many seeds the base policy gets the larger share).
+    Writes OUT/pair.csv (a row per world, shift, seed, method and reading) and OUT/table.md
+    (per world and shift: the behaviour per seed, the distinct test tasks, and per method and
+    reading on how many seeds the base policy gets the larger share).
     """
 
+    worlds: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--world",))] = ("nav2d", "doorkey")
+    """Which worlds (nav2d, doorkey)."""
+    shifts: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--shift",))] = (
+        "distractor_ti",
+        "object_ti",
+    )
+    """Which shifts (distractor_ti, object_ti)."""
     seeds: int = 10
-    """Seeds 0 .. SEEDS-1, each an independent pair."""
+    """Seeds 0 .. SEEDS-1 per world and shift, each an independent pair."""
     out: Path = Path("recordings/explain-pair")
     """Folder for pair.csv and table.md."""
 

@@ -56,18 +56,24 @@ def experiment_explain(args: ExplainArgs) -> None:
 
 
 def experiment_pair(args: PairArgs) -> None:
-    """Make and compare the model pair of each seed; write the rows and the table."""
+    """Make and compare the model pair of each world, shift and seed; write the rows and the
+    table."""
     from tqdm import tqdm
 
-    from dfa_viz.experiment.model_pair import pair_rows, write
-    from sim.core import UserError
+    from dfa_viz.experiment.model_pair import check_pair, pair_rows, write
 
-    if args.seeds < 1:
-        raise UserError(f"--seeds is how many seeds to run, at least 1, not {args.seeds}")
+    worlds, shifts = tuple(dict.fromkeys(args.worlds)), tuple(dict.fromkeys(args.shifts))
+    check_pair(worlds, shifts, args.seeds)
+    jobs = [(w, s, seed) for w in worlds for s in shifts for seed in range(args.seeds)]
     rows = [
-        r for seed in tqdm(range(args.seeds), desc="pairs", unit="seed") for r in pair_rows(seed)
+        r
+        for w, s, seed in tqdm(jobs, desc="pairs", unit="seed")
+        for r in pair_rows(seed, world_name=w, shift=s)
     ]
-    command = f"dfa experiment pair --seeds {args.seeds} --out {args.out}"
+    command = (
+        f"dfa experiment pair --world {' '.join(worlds)} --shift {' '.join(shifts)} "
+        f"--seeds {args.seeds} --out {args.out}"
+    )
     for path in write(rows, args.out, command):
         print(f"  {path}")
 
