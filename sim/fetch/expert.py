@@ -35,10 +35,13 @@ def pick_and_place(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: f
     goal and set it there."""
     d = obj - grip
     if np.linalg.norm(d) < HELD_M and width < CLOSED_WIDTH_M:
-        to = goal.copy()
-        if np.linalg.norm(goal[:2] - obj[:2]) > ARRIVED_M:  # over the table at carrying height
-            to = np.array([obj[0], obj[1], CARRY_Z_M]) if obj[2] < CARRY_Z_M - 0.02 else goal
-            to[2] = max(to[2], CARRY_Z_M)
+        far = float(np.linalg.norm(goal[:2] - obj[:2]))
+        # as high over the goal's height as the goal is far across (a funnel, not a corner to
+        # turn: a policy a centimetre off still comes down), at most the carrying height
+        height = max(goal[2], min(CARRY_Z_M, goal[2] + far))
+        to = np.array([goal[0], goal[1], height])
+        if obj[2] < min(height, CARRY_Z_M) - 0.02 and far > ARRIVED_M:  # up off the table first
+            to = np.array([obj[0], obj[1], height])
         return _move(to + (grip - obj), grip, -1.0)
     off = float(np.linalg.norm(d[:2]))
     hover = min(HOVER_M, 4.0 * max(0.0, off - LINED_UP_M))
