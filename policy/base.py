@@ -25,7 +25,6 @@ import os
 import platform
 import sys
 import time
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +74,7 @@ def recipe(world: World, demos: list[Trajectory], *, seed: int, config: TrainCon
     doc = {
         "world": world.name,
         "seed": seed,
-        "train": asdict(config),
+        "train": config.to_dict(),
         "policy": arch.to_dict(),
         "demonstrations": len(demos),
         "initial_scenes": _sha(json.dumps([d.scenes[0].to_dict() for d in demos])),

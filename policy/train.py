@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import torch
@@ -25,6 +25,17 @@ class TrainConfig:
     batch_size: int = 64
     lr: float = 1e-3
     seed: int = 0
+    lr_schedule: str = "constant"
+    """"constant", or "cosine": the rate falls along half a cosine to 0 at the last step (each
+    DAgger round's fit its own)."""
+
+    def to_dict(self) -> dict:
+        """As a recipe holds it: without `lr_schedule` where it is constant, so that the
+        recipes of the policies trained before schedules were chosen read back the same."""
+        doc = asdict(self)
+        if self.lr_schedule == "constant":
+            del doc["lr_schedule"]
+        return doc
 
 
 BASE = TrainConfig()
@@ -82,6 +93,7 @@ def behaviour_clone(
         net = ImagePolicy(base_arch(world))
     net.train()
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
+    learning_rate(config, 0)  # an unknown schedule is one line before any work
     x_all = torch.from_numpy(obs)
     if world.discrete:
         y_all = torch.from_numpy(act.astype(np.int64))
@@ -112,6 +124,8 @@ def behaviour_clone(
                 f"training stopped at step {step}: the loss is {value}, not a finite number "
                 "(the policy or its demonstrations hold non-finite values)"
             )
+        for group in opt.param_groups:
+            group["lr"] = learning_rate(config, step)
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -119,6 +133,15 @@ def behaviour_clone(
         if on_loss is not None:
             on_loss(step, losses[-1])
     return (init.with_net(net) if init is not None else Policy(net)), losses
+
+
+def learning_rate(config: TrainConfig, step: int) -> float:
+    """The learning rate at `step` (0-based) of a fit of `config.steps` steps."""
+    if config.lr_schedule == "constant":
+        return config.lr
+    if config.lr_schedule == "cosine":
+        return config.lr * 0.5 * (1 + math.cos(math.pi * step / config.steps))
+    raise UserError(f"lr_schedule {config.lr_schedule!r} is not known; accepted: constant, cosine")
 
 
 def finetune(
@@ -236,5 +259,6 @@ def base_steps(world: World) -> int:
 
 
 def base_config(world: World) -> TrainConfig:
-    """The settings a world's base policy is cloned with: BASE with the world's steps."""
-    return replace(BASE, steps=world.cloning.steps)
+    """The settings a world's base policy is cloned with: BASE with the world's steps and
+    learning-rate schedule."""
+    return replace(BASE, steps=world.cloning.steps, lr_schedule=world.cloning.lr_schedule)

@@ -44,6 +44,9 @@ class Cloning:
     head: str = "flatten"
     """The policy's head (policy.model.HEADS): "flatten", the paper's; "spatial_softmax",
     keypoints of the trunk's maps, for frames where what matters is a few pixels wide."""
+    lr_schedule: str = "constant"
+    """The learning rate over each fit's steps (policy.train.TrainConfig.lr_schedule):
+    "constant" (the paper's worlds) or "cosine"."""
 
 
 @dataclass(frozen=True)
