@@ -19,6 +19,7 @@ import importlib
 import json
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -65,7 +66,7 @@ class SB3Actor(Explainable):
         return self.forward(obs)
 
     def convolutions(self) -> list[nn.Conv2d]:
-        p = self.policy
+        p: Any = self.policy  # an SB3 policy: its extractors are attributes torch cannot type
         extractor = p.q_net.features_extractor if self.kind == "dqn" else p.pi_features_extractor
         return [m for m in extractor.modules() if isinstance(m, nn.Conv2d)]
 

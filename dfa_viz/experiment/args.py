@@ -189,6 +189,10 @@ class UnplantedArgs:
     """A learned prior file (`dfa prior`); default: fitted here on --prior-tasks planted tasks."""
     prior_tasks: int = 20
     """Planted size-2 tasks the prior is fitted on when no --prior is given (0: no prior)."""
+    prior_fit: Literal["planted", "others"] = "planted"
+    """planted: the prior from --prior or --prior-tasks; others: each task's prior cross-fitted
+    on the run's other tasks (their exhaustive ground truth; leave one out), for a world whose
+    planted tasks are too rare to fit on (--prior-tasks is then unused)."""
     tries: int = 2000
     """Candidates drawn at most to find --tasks failing ones."""
     out: Path = Path("recordings/experiments/unplanted")

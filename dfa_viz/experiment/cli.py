@@ -84,7 +84,7 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
 
     from tqdm import tqdm
 
-    from dfa_viz.experiment.unplanted import TASK_COLUMNS, run_world
+    from dfa_viz.experiment.unplanted import OTHERS, TASK_COLUMNS, run_world
     from dfa_viz.experiment.unplanted_table import merge, read_csv
     from policy.outside import chosen_policy
     from search.prior import LearnedPrior
@@ -108,7 +108,12 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
         raise UserError(f"{world.name} has no training tasks or expert to judge failures by")
     policy = chosen_policy(world, args.policy)
     t0 = time.perf_counter()
-    if args.prior is not None:
+    if args.prior_fit == "others":
+        if args.prior is not None or args.tasks < 2:
+            raise UserError("--prior-fit others fits on the run's other tasks: give no --prior "
+                            "and --tasks 2 or more")  # fmt: skip
+        prior, prior_text = OTHERS, "cross-fitted on the run's other tasks (leave one out)"
+    elif args.prior is not None:
         prior, prior_text = LearnedPrior.load(args.prior, world), str(args.prior)
     elif args.prior_tasks == 0:
         prior, prior_text = None, "none"
@@ -121,7 +126,13 @@ def experiment_unplanted(args: UnplantedArgs) -> None:
         f"dfa experiment unplanted --world {world.name} --kind {args.kind} --tasks {args.tasks} "
         f"--seed {args.seed}"
         + (f" --policy {args.policy}" if args.policy else "")
-        + (f" --prior {args.prior}" if args.prior else f" --prior-tasks {args.prior_tasks}")
+        + (
+            " --prior-fit others"
+            if args.prior_fit == "others"
+            else f" --prior {args.prior}"
+            if args.prior
+            else f" --prior-tasks {args.prior_tasks}"
+        )
         + f" --out {args.out}"
     )
     bar = tqdm(total=args.tasks, desc=f"{world.name} {args.kind}", unit="task")

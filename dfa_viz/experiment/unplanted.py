@@ -9,14 +9,17 @@ Per failing task (all distinct), one row of tasks.csv:
 - the counterfactual search (search.counterfactual_search, the world's defaults, up to size 2):
   whether its best edit is a minimal ground-truth edit, whether it restores success at all,
   its size against the minimal size, its rollouts;
-- the learned prior (search.prior, fitted on planted size-2 tasks of seeds disjoint from these;
-  none: not measured): the rank of the first ground-truth edit among the edits of the minimal
-  size in the prior's order, beside plain enumeration's.
+- the learned prior (search.prior, fitted on planted size-2 tasks of seeds disjoint from these,
+  or, with prior=OTHERS, cross-fitted: each task's prior on the run's other tasks, their size-1
+  passes labelled by their exhaustive ground truth, never on the task itself; none: not
+  measured): the rank of the first ground-truth edit among the edits of the minimal size in the
+  prior's order, beside plain enumeration's.
 Per task, saliency method and readout, one row of saliency.csv: whether the first concept of
 the readout's ranking (policy.concept_saliency, the explainer benchmark's readouts) belongs to
 an object a minimal ground-truth edit changes (object top-1); a seeded random order is the floor.
-A policy the saliency methods cannot take apart (policy.saliency.check_explainable: an outside
-agent's network) has no saliency rows, the random floor's included.
+A policy the saliency methods cannot take apart (policy.saliency.check_explainable: a network
+that does not declare policy.model.Explainable) has no saliency rows, the random floor's
+included; the project's image policies and outside stable-baselines3 CNN policies have them.
 The table is unplanted_table.
 """
 
@@ -60,6 +63,10 @@ TASK_COLUMNS = (
 )
 SALIENCY_COLUMNS = ("world", "policy", "kind", "task_id", "method", "reading", "span", "top", "hit")
 NONE = "-"
+OTHERS = "others"
+"""prior=OTHERS: each task's prior cross-fitted on the run's other tasks (leave one out)."""
+PRIOR_SCENES = 100
+"""Cross-fitting: the value frequencies come from training seeds 0 .. PRIOR_SCENES-1."""
 
 
 def _yes(x: bool | None) -> str:
@@ -75,12 +82,15 @@ def measure(
     policy_name: str,
     run_seed: int,
     methods: Sequence[str] = METHODS,
+    logs: list | None = None,
 ) -> tuple[dict, list[dict]]:
-    """One task: its tasks.csv row and its saliency.csv rows (strings)."""
+    """One task: its tasks.csv row and its saliency.csv rows (strings). `logs`: a list the
+    task's SearchLog (its size-1 pass, labelled by the ground truth) is appended to, for
+    cross-fitting (`cross_fitted`); prior=OTHERS leaves prior_rank to it."""
     from search import SearchConfig, counterfactual_search
     from search.enumerate import combinations, singles
     from search.lockstep import rollout_lockstep
-    from search.prior import unedited_candidate
+    from search.prior import SearchLog, unedited_candidate
 
     t0 = time.perf_counter()
     task = u.task
@@ -94,15 +104,17 @@ def measure(
     if gt.size is not None:
         enum_order = list(combinations(world.space, task.scene, gt.size))
         enum_rank, n_at = rank_in(enum_order, set(gt.edits)), len(enum_order)
-    if gt.size is not None and prior is not None:
+    if gt.size is not None and (prior is not None or logs is not None):
         tried = [c for c in result.tried if c.edit.size == 1]
         every = singles(world.space, task.scene)
         if len(tried) < len(every):
             tried = rollout_lockstep(world, policy, task.scene, demo, every, epsilon=world.epsilon)
         unedited = unedited_candidate(world, policy, task.scene, demo)
-        costs = prior.costs(world.space, tried, unedited)
-        order = list(combinations(world.space, task.scene, gt.size, prior=costs, grouped=False))
-        prior_rank = rank_in(order, set(gt.edits))
+        if logs is not None:
+            logs.append(SearchLog(task.scene, unedited, tuple(tried), gt.edits))
+        if prior is not None and prior != OTHERS:
+            prior_rank = prior_rank_of(world, prior, SearchLog(task.scene, unedited, (), gt.edits),
+                                       tuple(tried))  # fmt: skip
     tid = task_id(task)
     row = {
         "world": world.name,
@@ -136,6 +148,41 @@ def measure(
     base = {"world": world.name, "policy": policy_name, "kind": u.kind, "task_id": tid}
     rows = [{**base, **r} for r in saliency]
     return {k: str(v) for k, v in row.items()}, [{k: str(v) for k, v in r.items()} for r in rows]
+
+
+def prior_rank_of(world, prior, log, tried) -> int | None:
+    """The rank of the first of `log.answer` (the minimal ground-truth edits) among the edits
+    of their size, in the order of `prior`'s costs of the size-1 pass `tried`."""
+    from search.enumerate import combinations
+
+    costs = prior.costs(world.space, tried, log.unedited)
+    size = log.answer[0].size
+    order = list(combinations(world.space, log.scene, size, prior=costs, grouped=False))
+    return rank_in(order, set(log.answer))
+
+
+def cross_fitted(
+    world, rows: list[dict], logs: list, *, scenes: Sequence | None = None, l2: float = 1.0
+) -> list[dict]:
+    """`rows` with prior_rank from priors cross-fitted over the tasks with a ground truth (one
+    SearchLog each, in `rows`' order among those with gt_size): each task ranked by a prior
+    fitted on every other task's log, never its own; "-" where the others give nothing to fit.
+    scenes: the training scenes giving value frequencies (default: seeds 0 .. PRIOR_SCENES-1)."""
+    from search.prior import fit
+    from sim.core import UserError
+
+    if scenes is None:
+        scenes = [world.train_task(s).scene for s in range(PRIOR_SCENES)]
+    with_gt = [i for i, r in enumerate(rows) if r["gt_size"] != NONE]
+    assert len(with_gt) == len(logs), "one log per task with a ground truth"
+    out = [dict(r) for r in rows]
+    for j, i in enumerate(with_gt):
+        try:
+            prior = fit(world, logs[:j] + logs[j + 1 :], scenes, l2=l2)
+        except UserError:  # no other task has a ground truth
+            continue
+        out[i]["prior_rank"] = str(prior_rank_of(world, prior, logs[j], logs[j].singles) or NONE)
+    return out
 
 
 def _saliency(world, policy, task, demo, gt: GroundTruth, methods, *, seed: int) -> list[dict]:
@@ -185,18 +232,24 @@ def run_world(
     on_task: Callable[[list[dict], list[dict], int], None] | None = None,
 ) -> tuple[list[dict], list[dict], int]:
     """n failing tasks of `kind` measured: (tasks.csv rows, saliency.csv rows, candidates
-    drawn to find them); `on_task(rows, saliency rows, drawn)` after each task, all so far."""
+    drawn to find them); `on_task(rows, saliency rows, drawn)` after each task, all so far (with
+    prior OTHERS, every task's rank from a prior cross-fitted on the other tasks so far)."""
     from search.unplanted import candidate_seed, failing
 
     rows, sal = [], []
+    logs: list | None = [] if prior == OTHERS else None
+    scenes = [world.train_task(s).scene for s in range(PRIOR_SCENES)] if logs is not None else []
     last = candidate_seed(seed, 0) - 1
     for u in failing(world, policy, kind, n, seed=seed, tries=tries):
         row, srows = measure(
-            world, policy, u, prior=prior, policy_name=policy_name, run_seed=seed, methods=methods
-        )
+            world, policy, u, prior=prior, policy_name=policy_name, run_seed=seed,
+            methods=methods, logs=logs,
+        )  # fmt: skip
         rows.append(row)
         sal += srows
         last = u.task.seed
+        if logs is not None:  # every task so far ranked by a prior fitted on the others
+            rows = cross_fitted(world, rows, logs, scenes=scenes)
         if on_task is not None:
             on_task(rows, sal, last - candidate_seed(seed, 0) + 1)
     return rows, sal, last - candidate_seed(seed, 0) + 1

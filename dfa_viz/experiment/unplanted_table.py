@@ -181,7 +181,12 @@ def table(tasks: list[dict], sals: list[dict], runs: list[dict]) -> str:
         "## The learned prior",
         "",
         "Fitted on planted size-2 tasks (search/planted.py, seeds below 1,000,000; these tasks' "
-        "seeds are 1,000,000 and up). Rank of the first minimal ground-truth edit among all "
+        "seeds are 1,000,000 and up), or, in a run whose prior reads cross-fitted (Runs, "
+        "`--prior-fit others`), each task's prior fitted on the run's other tasks (their size-1 "
+        "passes labelled by their exhaustive ground truth), never on the task itself. On "
+        "MiniGrid DoorKey a planted size-2 task is seldom one the expert can solve (a key opens "
+        "only the door of its colour: 2 of the first 40 planted seeds), so the run fits on "
+        "natural failures instead. Rank of the first minimal ground-truth edit among all "
         "edits of the minimal size, in the prior's order (its -log p summed over an edit's "
         "changes) and in plain enumeration order: median / 90th percentile.",
         "",
@@ -216,8 +221,10 @@ def _saliency_tables(groups, sals: list[dict]) -> list[str]:
         "On tasks with a ground truth: the first concept of each readout (policy."
         "concept_saliency, the explainer benchmark's) belongs to an object a minimal "
         "ground-truth edit changes. An edit that adds an object has no pixels to point at. "
-        "A dash: no row (no task with a ground truth, or a policy whose network the saliency "
-        "methods cannot take apart, such as an outside SB3 agent).",
+        "A dash: no row (no task with a ground truth, or a policy whose network does not "
+        "declare what the methods need, policy.model.Explainable). The outside SB3 agent's "
+        "network is taken apart like the project's own (policy.sb3_policy.SB3Actor: its "
+        "logits from float frames, its features extractor's convolutions for Grad-CAM).",
     ]
     for reading, span in READOUTS:
         out += [

@@ -45,9 +45,39 @@ def test_one_task_measured_into_a_folder(nav, nav_policy, tmp_path):
         (["--tries", "1", "--tasks", "2"], "--tries 1 is fewer than --tasks 2"),
         (["--seed", "-1"], "seed must be an integer"),
         (["--prior-tasks", "-1"], "--prior-tasks must be 0 (no prior) or more, not -1"),
+        (["--prior-fit", "others", "--tasks", "1"], "--prior-fit others fits on the run's"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(args, message, capsys, tmp_path):
     assert main(["experiment", "unplanted", "--out", str(tmp_path / "o"), *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0], err
+
+
+def test_cross_fitted_priors_leave_each_task_out(nav, nav_policy):
+    from dfa_viz.experiment.unplanted import NONE, cross_fitted, prior_rank_of
+    from search.enumerate import singles
+    from search.lockstep import rollout_lockstep
+    from search.prior import SearchLog, fit, unedited_candidate
+
+    logs, rows = [], []
+    for seed in range(3):
+        task = nav.train_task(seed)
+        demo = nav.demonstrate(task)
+        every = singles(nav.space, task.scene)
+        tried = rollout_lockstep(nav, nav_policy, task.scene, demo, every, epsilon=nav.epsilon)
+        # two colour changes are this task's answers (labels any edit could carry)
+        answer = tuple(e for e in every if next(iter(e.changes)).concept == "colour")[:2]
+        assert answer
+        unedited = unedited_candidate(nav, nav_policy, task.scene, demo)
+        logs.append(SearchLog(task.scene, unedited, tuple(tried), answer))
+        rows.append({"gt_size": "1", "prior_rank": NONE, "n_at_size": str(len(every))})
+    rows.insert(1, {"gt_size": NONE, "prior_rank": NONE, "n_at_size": NONE})  # no ground truth
+    scenes = [nav.train_task(s).scene for s in range(5)]
+    assert cross_fitted(nav, rows[:1], logs[:1], scenes=scenes)[0]["prior_rank"] == NONE
+    ranked = cross_fitted(nav, rows, logs, scenes=scenes)
+    assert ranked[1] == rows[1] and rows[0]["prior_rank"] == NONE  # rows left as they were
+    for row, j in zip([ranked[0], ranked[2], ranked[3]], range(3), strict=True):
+        alone = fit(nav, logs[:j] + logs[j + 1 :], scenes)  # every other task, never this one
+        assert row["prior_rank"] == str(prior_rank_of(nav, alone, logs[j], logs[j].singles))
+        assert 1 <= int(row["prior_rank"]) <= int(row["n_at_size"])
