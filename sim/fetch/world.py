@@ -82,7 +82,7 @@ TASKS = {
         X.pick_and_place,
         # keypoints (5/30 held-out tasks where the flatten head solves 1/30, side view only),
         # then DAgger: the clone's own states, labelled by the demonstrator
-        cloning=Cloning(200, 3000, 0.15, 2, "spatial_softmax", "cosine"),
+        cloning=Cloning(200, 2000, 0.15, 2, "spatial_softmax", "cosine"),
         extra_views=(FRONT,),
     ),
     "FetchPush-v4": FetchTask("push the block onto the target", X.push),
