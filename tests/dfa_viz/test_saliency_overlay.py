@@ -77,7 +77,7 @@ def test_without_the_flag_there_is_no_layer(tmp_path):
                 "--saliency",
                 "grad_cam",
             ],
-            "saliency maps need one of the project's own image policies",
+            "saliency maps need an image policy whose network they can take apart",
         ),
     ],
 )
