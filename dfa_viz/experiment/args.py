@@ -144,8 +144,8 @@ class PairArgs:
     reading on how many seeds the base policy gets the larger share).
     """
 
-    worlds: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--world",))] = ("nav2d", "doorkey")
-    """Which worlds (nav2d, doorkey)."""
+    worlds: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--world",))] = ()
+    """Which worlds (nav2d, doorkey; none named: both)."""
     shifts: Annotated[tuple[str, ...], tyro.conf.arg(aliases=("--shift",))] = (
         "distractor_ti",
         "object_ti",

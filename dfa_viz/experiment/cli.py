@@ -60,9 +60,10 @@ def experiment_pair(args: PairArgs) -> None:
     table."""
     from tqdm import tqdm
 
-    from dfa_viz.experiment.model_pair import check_pair, pair_rows, write
+    from dfa_viz.experiment.model_pair import check_pair, pair_rows, pair_worlds, write
 
-    worlds, shifts = tuple(dict.fromkeys(args.worlds)), tuple(dict.fromkeys(args.shifts))
+    worlds = tuple(dict.fromkeys(args.worlds)) or pair_worlds()
+    shifts = tuple(dict.fromkeys(args.shifts))
     check_pair(worlds, shifts, args.seeds)
     jobs = [(w, s, seed) for w in worlds for s in shifts for seed in range(args.seeds)]
     rows = [

@@ -29,11 +29,9 @@ import numpy as np
 
 from dfa_viz.configs import AdaptConfig
 from policy.methods import METHOD_NAMES
+from sim import PAPER_WORLDS, get_world
 from sim.core import Edit, UserError, files
 
-PAIR_WORLDS = ("nav2d", "doorkey")
-"""The worlds a pair is made in: the gridworlds, whose loop takes seconds a seed (the
-tabletop's physics rollouts are left out for their cost)."""
 PAIR_SHIFTS = ("distractor_ti", "object_ti")
 """The shifts a pair is made for: those whose feedback teaches the policy to ignore the cause."""
 MARGIN = 0.01  # shares closer than this (a point of the attribution) are a tie, not a verdict
@@ -54,12 +52,19 @@ COLUMNS = (
 )
 
 
+def pair_worlds() -> tuple[str, ...]:
+    """The worlds a pair is made in: the paper's worlds whose rollouts are not a physics
+    simulation (World.simulated), where the loop takes seconds a seed (the tabletop's physics
+    rollouts are left out for their cost)."""
+    return tuple(name for name in PAPER_WORLDS if not get_world(name).simulated)
+
+
 def check_pair(worlds: Sequence[str], shifts: Sequence[str], seeds: int) -> None:
     """Raise a one-line UserError for a world, shift or seed count a pair cannot be made for."""
     if seeds < 1:
         raise UserError(f"--seeds is how many seeds to run, at least 1, not {seeds}")
     for option, given, accepted in (
-        ("--world", worlds, PAIR_WORLDS),
+        ("--world", worlds, pair_worlds()),
         ("--shift", shifts, PAIR_SHIFTS),
     ):
         bad = [g for g in given if g not in accepted] or ([] if given else ["(none)"])

@@ -15,8 +15,8 @@ from dfa_viz.cli import main
 from dfa_viz.experiment.model_pair import (
     COLUMNS,
     PAIR_SHIFTS,
-    PAIR_WORLDS,
     pair_rows,
+    pair_worlds,
     share,
     table,
     undo_of,
@@ -85,7 +85,7 @@ def test_a_bad_option_is_one_line_and_writes_nothing(tmp_path, capsys, option):
     assert main(["experiment", "pair", *option, "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
-    accepted = {"--world": PAIR_WORLDS, "--shift": PAIR_SHIFTS, "--seeds": ("at least 1",)}
+    accepted = {"--world": pair_worlds(), "--shift": PAIR_SHIFTS, "--seeds": ("at least 1",)}
     assert all(a in err[0] for a in accepted[option[0]]), err
     assert not out.exists()
 
