@@ -96,7 +96,7 @@ class MujocoWorld(Benchmark):
         self.size_px = size_px
         self._lock = threading.RLock()
         self._env = None
-        self._camera = None  # (mujoco.Renderer, MjvCamera), made on the first render
+        self._camera = None  # (mujoco.Renderer, [camera per view], MjvOption), on first render
         self._looks: dict = {}
         env = self._open()  # the concept space is read from the model
         self.built = {s: self._looks[s].colour for s in self._looks}
