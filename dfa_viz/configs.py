@@ -93,7 +93,8 @@ class RunArgs:
     """Run the whole DFA loop once with the simulated user and report what happened.
 
     Rolls the base policy out on a failing test task of the chosen shift, takes a
-    demonstration, searches the smallest concept edit that makes the policy follow it, takes
+    demonstration, searches the smallest concept edit that makes the policy follow it (in a
+    closed-loop MuJoCo world: do the task it shows), takes
     TI/TR feedback, finetunes on the demonstration and its variants over the TI concepts, and
     scores both policies on 10 fresh tasks that carry the shift (and 10 from all of what the
     user wants). Everything is recorded to OUT/<world>-<shift>-seed<seed>.rrd (another

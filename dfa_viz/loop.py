@@ -216,10 +216,10 @@ def diagnose(
     config: SearchConfig,
     on_progress: ProgressCallback | None = None,
 ) -> Diagnosis:
-    """The smallest concept edits after which the policy follows the demonstration, and the
-    policy's rollouts from them (one batch)."""
+    """The smallest concept edits after which the policy follows the demonstration (or does
+    the task, World.counterfactual), and the policy's rollouts from them (one batch)."""
     result = counterfactual_search(
-        world, policy, task.scene, demo, config=config, on_progress=on_progress
+        world, policy, task.scene, demo, config=config, on_progress=on_progress, task=task
     )
     return Diagnosis(result, tuple(counterfactual_rollouts(world, policy, task, result)))
 

@@ -11,7 +11,7 @@ from search.enumerate import combinations, count
 from search.lockstep import Candidate, rollout_lockstep
 from search.pauses import paused
 from search.prior import LearnedPrior, unedited_candidate
-from sim.core import Change, Scene, Trajectory, UserError, World
+from sim.core import Change, Scene, Task, Trajectory, UserError, World
 
 # (size, candidates done, candidates in this size) -> None
 ProgressCallback = Callable[[int, int, int], None]
@@ -33,7 +33,8 @@ class SearchConfig:
     prior: bool = True
     """Order edits of size >= 2 by the first-step distances their single changes got."""
     joint_below: int = 512
-    """When all sizes together have at most this many edits, roll them out in one pass."""
+    """When all sizes together have at most this many edits, roll them out in one pass (where
+    the world's counterfactual "follows" the demonstration)."""
     max_candidates: int | None = None
     """Stop after this many candidates (the most promising first); None = no limit."""
     learned: LearnedPrior | None = None
@@ -68,6 +69,9 @@ class SearchResult:
     max_size: int
     complete: bool = True
     """False when the search stopped at its candidate limit before trying every edit."""
+    criterion: str = "follows"
+    """What made an edit a counterfactual (World.counterfactual): "follows" the
+    demonstration step by step, or "succeeds" at the task."""
 
     @property
     def found(self) -> bool:
@@ -78,13 +82,15 @@ class SearchResult:
             "size": self.size,
             "max_size": self.max_size,
             "complete": self.complete,
+            "criterion": self.criterion,
             "counterfactuals": [c.to_dict() for c in self.counterfactuals],
             "tried": [c.to_dict() for c in self.tried],
         }
 
     @classmethod
     def from_json(cls, d: dict) -> SearchResult:
-        """Read back `to_json` (UserError if malformed); `complete` defaults to True."""
+        """Read back `to_json` (UserError if malformed); `complete` defaults to True and
+        `criterion` to "follows"."""
         try:
             return cls(
                 tuple(Candidate.from_dict(c) for c in d["counterfactuals"]),
@@ -92,6 +98,7 @@ class SearchResult:
                 d["size"],
                 d["max_size"],
                 bool(d.get("complete", True)),
+                str(d.get("criterion", "follows")),
             )
         except (KeyError, TypeError) as e:
             raise UserError(f"malformed search result ({type(e).__name__}: {e})") from None
@@ -108,9 +115,10 @@ class SearchResult:
                 "likely outside the concept space"
             )
         if not self.found:
+            goal = "do the task" if self.criterion == "succeeds" else "follow the demonstration"
             return (
                 f"no counterfactual: no edit of up to {self.max_size} concept changes makes the "
-                "policy follow the demonstration; the cause is outside the concept space"
+                f"policy {goal}; the cause is outside the concept space"
             )
         edits = "; or ".join(str(c.edit) for c in self.counterfactuals)
         return f"counterfactual of size {self.size}: {edits}"
@@ -126,25 +134,32 @@ def counterfactual_search(
     config: SearchConfig = SearchConfig(),
     on_candidate: CandidateCallback | None = None,
     on_progress: ProgressCallback | None = None,
+    task: Task | None = None,
 ) -> SearchResult:
-    """Search edits of size 1, 2, ... for those after which the policy matches `demo`.
+    """Search edits of size 1, 2, ... for those after which the policy matches `demo` (or,
+    where the world's counterfactual "succeeds", does `task`: search.lockstep).
 
     scene: the test task's initial scene (the demonstration starts from it).
+    task: whose R' judges a rollout that "succeeds" (default: `world.task_for(scene)`).
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
     eps = world.epsilon if config.epsilon is None else config.epsilon
     if config.learned is not None:
         config.learned.check_world(world)
-    if not config.first_only:
+    # One pass over every size saves steps where candidates drop early; where every rollout
+    # runs to the end ("succeeds"), larger sizes would cost their whole rollouts for nothing.
+    if not config.first_only and world.counterfactual == "follows":
         sizes = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
         if sum(sizes.values()) <= config.joint_below:
-            return _joint_search(world, policy, scene, demo, sizes, eps, on_candidate, on_progress)
+            return _joint_search(
+                world, policy, scene, demo, task, sizes, eps, on_candidate, on_progress
+            )
     tried: list[Candidate] = []
     prior: dict[Change, float] = {}
     totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
     for size in range(1, config.max_size + 1):
         if size == 2 and config.learned is not None:
-            unedited = unedited_candidate(world, policy, scene, demo, epsilon=eps)
+            unedited = unedited_candidate(world, policy, scene, demo, epsilon=eps, task=task)
             singles = [c for c in tried if c.edit.size == 1]
             prior = config.learned.costs(world.space, singles, unedited)
         ordered = size > 1 and (config.prior or config.learned is not None)
@@ -166,7 +181,7 @@ def counterfactual_search(
             wave = list(itertools.islice(edits, max(room, 0)))
             if not wave:
                 break
-            results = rollout_lockstep(world, policy, scene, demo, wave, epsilon=eps)
+            results = rollout_lockstep(world, policy, scene, demo, wave, epsilon=eps, task=task)
             for cand in results:
                 tried.append(cand)
                 if size == 1:
@@ -181,9 +196,13 @@ def counterfactual_search(
             if valid and config.first_only:
                 break
         if valid:
-            return SearchResult(_rank(valid), tuple(tried), size, config.max_size)
+            return SearchResult(
+                _rank(valid), tuple(tried), size, config.max_size, criterion=world.counterfactual
+            )
     complete = len(tried) == sum(totals.values())
-    return SearchResult((), tuple(tried), None, config.max_size, complete)
+    return SearchResult(
+        (), tuple(tried), None, config.max_size, complete, criterion=world.counterfactual
+    )
 
 
 def _rank(valid: list[Candidate]) -> tuple[Candidate, ...]:
@@ -195,6 +214,7 @@ def _joint_search(
     policy: Policy,
     scene: Scene,
     demo: Trajectory,
+    task: Task | None,
     totals: dict[int, int],
     eps: float,
     on_candidate: CandidateCallback | None,
@@ -204,7 +224,7 @@ def _joint_search(
     size), then the same answer as size by size. Larger sizes than the answer's are discarded
     without being reported."""
     edits = [e for k in totals for e in combinations(world.space, scene, k)]
-    results = rollout_lockstep(world, policy, scene, demo, edits, epsilon=eps)
+    results = rollout_lockstep(world, policy, scene, demo, edits, epsilon=eps, task=task)
     tried: list[Candidate] = []
     for size, total in totals.items():
         batch = [c for c in results if c.edit.size == size]
@@ -216,5 +236,7 @@ def _joint_search(
             on_progress(size, total, total)
         valid = [c for c in batch if c.valid]
         if valid:
-            return SearchResult(_rank(valid), tuple(tried), size, max(totals))
-    return SearchResult((), tuple(tried), None, max(totals))
+            return SearchResult(
+                _rank(valid), tuple(tried), size, max(totals), criterion=world.counterfactual
+            )
+    return SearchResult((), tuple(tried), None, max(totals), criterion=world.counterfactual)

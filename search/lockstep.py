@@ -9,7 +9,7 @@ import numpy as np
 
 from policy.model import Policy, probabilities
 from search.pauses import paused
-from sim.core import Edit, Scene, Trajectory, UserError, World
+from sim.core import Edit, Scene, Task, Trajectory, UserError, World
 
 
 @dataclass(frozen=True, eq=False)
@@ -20,7 +20,8 @@ class Candidate:
         worlds; 1 - p(demonstrated action) for discrete ones); NaN after the candidate was
         dropped and at steps after the demonstration ended.
     matches: bool (T,) whether the step was within the bound (exact match when discrete).
-    dropped_at: the first step that broke the bound, or None when the edit is valid.
+    dropped_at: None when the edit is valid; else the first step that broke the bound, or,
+        where the world's counterfactual "succeeds", the step its failed rollout ended.
     """
 
     edit: Edit
@@ -80,20 +81,26 @@ def rollout_lockstep(
     edits: Sequence[Edit],
     *,
     epsilon: float,
+    task: Task | None = None,
 ) -> list[Candidate]:
     """Roll the policy out from every edited scene at once and compare with the demonstration.
 
     Each step: one batched render of the live candidates, one batched forward pass, one
-    vectorised dynamics step. A candidate is dropped the first step its action leaves the
-    bound (L1 < epsilon for continuous worlds, exact match for discrete ones).
+    vectorised dynamics step. Where the world's counterfactual "follows" the demonstration, a
+    candidate is dropped the first step its action leaves the bound (L1 < epsilon for
+    continuous worlds, exact match for discrete ones). Where it "succeeds", every candidate is
+    rolled out to the end and is valid when R' of `task` (default: `world.task_for(scene)`)
+    holds on its states; a failed one is dropped at the step its rollout ended.
     """
     n, horizon = len(edits), demo.horizon
     steps = compared_steps(world, demo)
+    follows = world.counterfactual == "follows"
     distances = np.full((n, horizon), np.nan, np.float32)
     matches = np.zeros((n, horizon), bool)
     dropped = np.full(n, -1, np.int64)
     live = np.arange(n)
     scenes = world.apply_batch(scene, edits)
+    history = [[s] for s in scenes]  # each candidate's states, for R' ("succeeds")
     for t in range(steps):
         if len(live) == 0:
             break
@@ -110,11 +117,20 @@ def rollout_lockstep(
             ok = dist < epsilon
         distances[live, t] = dist
         matches[live, t] = ok
-        dropped[live[~ok]] = t
-        keep = np.flatnonzero(ok)
+        keep = np.arange(len(live))
+        if follows:
+            dropped[live[~ok]] = t
+            keep = np.flatnonzero(ok)
         live = live[keep]
-        if t + 1 < steps and len(live):
+        if len(live) and (t + 1 < steps or not follows):
             scenes = world.step_batch([scenes[i] for i in keep], acts[keep])
+            for i, s in zip(live, scenes, strict=True):
+                history[i].append(s)
+    if not follows:
+        task = task or world.task_for(scene)
+        for i in range(n):
+            if not world.success(task, history[i]):
+                dropped[i] = len(history[i]) - 1
     return [
         Candidate(edits[i], distances[i], matches[i], None if dropped[i] < 0 else int(dropped[i]))
         for i in range(n)

@@ -102,7 +102,7 @@ def accept(world: Benchmark, policy: Policy, seed: int, k: int) -> Planted | Non
     if not demo.success:
         return None
     config = SearchConfig(max_size=k, first_only=False, max_candidates=None)
-    result = counterfactual_search(world, policy, task.scene, demo, config=config)
+    result = counterfactual_search(world, policy, task.scene, demo, config=config, task=task)
     if result.size != k:
         return None
     return Planted(task, changes, demo, result)

@@ -32,6 +32,7 @@ from sim.core import (
     ConceptSpace,
     Edit,
     Scene,
+    Task,
     UserError,
     World,
     files,
@@ -62,11 +63,17 @@ class SearchLog:
 
 
 def unedited_candidate(
-    world: World, policy: Policy, scene: Scene, demo, *, epsilon: float | None = None
+    world: World,
+    policy: Policy,
+    scene: Scene,
+    demo,
+    *,
+    epsilon: float | None = None,
+    task: Task | None = None,
 ) -> Candidate:
     """The unedited scene rolled out like a candidate (the baseline the features compare to)."""
     eps = world.epsilon if epsilon is None else epsilon
-    return rollout_lockstep(world, policy, scene, demo, [EMPTY], epsilon=eps)[0]
+    return rollout_lockstep(world, policy, scene, demo, [EMPTY], epsilon=eps, task=task)[0]
 
 
 def search_log(world: World, policy: Policy, scene: Scene, demo, result) -> SearchLog:

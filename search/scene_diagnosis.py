@@ -3,7 +3,7 @@ counterfactual search (search.counterfactual) run on the failing scene against t
 expert demonstration of it, and its minimal edits replayed: the edit reported is the best
 ranked one under which the policy's own rollout succeeds at the task, or, where none does, the
 best ranked one (restores False); none where no edit of up to `max_size` changes makes the
-policy follow the demonstration."""
+policy follow the demonstration (or do the task, World.counterfactual)."""
 
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ def diagnose(
     config = SearchConfig.for_world(world, max_size=max_size)
     if max_candidates is not None:
         config = replace(config, max_candidates=max_candidates)
-    result = counterfactual_search(world, policy, task.scene, demo, config=config)
+    result = counterfactual_search(world, policy, task.scene, demo, config=config, task=task)
     found = list(result.counterfactuals)
     ok: list[bool] = []
     if found:

@@ -15,7 +15,7 @@ STATUS = {
     ),
     "solved": "You judged the rollout a success: nothing to diagnose. Load another task.",
     "demonstrate": "Show what you wanted: demonstrate it here, or ask the scripted expert.",
-    "diagnose": "Searching for the smallest concept edit that makes the policy follow you…",
+    "diagnose": "Searching for the smallest concept edit that makes the policy do what you showed…",
     "feedback": "Mark each edited concept TI or TR, then **Augment & finetune**.",
     "adapted": "Adapted. Compare the finetuned rollout with the failed one, or load another task.",
 }
@@ -38,17 +38,20 @@ def diagnosis_text(view: View) -> str:
     if run is None or run.diagnosis is None:
         return "Searching…" if view.stage == "diagnose" else ""
     res = run.diagnosis.result
+    succeeds = res.criterion == "succeeds"
     if not res.found:
+        goal = "do the task" if succeeds else "follow the demonstration"
         return (
             f"**{NO_COUNTERFACTUAL}**  \nNo edit of up to {res.max_size} concept changes makes "
-            f"the policy follow the demonstration ({len(res.tried)} edits tried): what changed "
+            f"the policy {goal} ({len(res.tried)} edits tried): what changed "
             "is something the concepts do not describe (e.g. a position)."
         )
     n = len(res.counterfactuals)
     changes = f"{res.size} change{'s' if res.size > 1 else ''}"
+    does = "does the task you demonstrated" if succeeds else "follows your demonstration"
     text = (
-        f"**Counterfactual found** ({len(res.tried)} edits tried). The policy follows your "
-        f"demonstration when the scene is edited like this ({changes}):"
+        f"**Counterfactual found** ({len(res.tried)} edits tried). The policy {does} "
+        f"when the scene is edited like this ({changes}):"
     )
     if n > 1:
         other = "another edit" if n == 2 else f"{n - 1} other edits"

@@ -182,6 +182,7 @@ def explain_task(spec: TaskSpec, settings: ExplainSettings = ExplainSettings()) 
                 task.scene,
                 demo,
                 config=SearchConfig.for_world(world, max_size=settings.max_size),
+                task=task,
             )
             rankings[(NONE, NONE)] = concept_ranking(world.space, task.scene, result)
         elif explainer == "random":

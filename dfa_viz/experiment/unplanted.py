@@ -96,9 +96,8 @@ def measure(
     task = u.task
     gt = ground_truth(world, policy, task)
     demo = world.demonstrate(task)
-    result = counterfactual_search(
-        world, policy, task.scene, demo, config=SearchConfig.for_world(world, max_size=2)
-    )
+    config = SearchConfig.for_world(world, max_size=2)
+    result = counterfactual_search(world, policy, task.scene, demo, config=config, task=task)
     best = result.best.edit if result.best is not None else None
     prior_rank = enum_rank = n_at = None
     if gt.size is not None:
@@ -108,8 +107,9 @@ def measure(
         tried = [c for c in result.tried if c.edit.size == 1]
         every = singles(world.space, task.scene)
         if len(tried) < len(every):
-            tried = rollout_lockstep(world, policy, task.scene, demo, every, epsilon=world.epsilon)
-        unedited = unedited_candidate(world, policy, task.scene, demo)
+            eps = world.epsilon
+            tried = rollout_lockstep(world, policy, task.scene, demo, every, epsilon=eps, task=task)
+        unedited = unedited_candidate(world, policy, task.scene, demo, task=task)
         if logs is not None:
             logs.append(SearchLog(task.scene, unedited, tuple(tried), gt.edits))
         if prior is not None and prior != OTHERS:

@@ -21,6 +21,7 @@ from sim.core.view3d import View3D
 # obs uint8 (B, H, W, 3) -> actions float32 (B, A) or int64 (B,)
 ActBatch = Callable[[np.ndarray], np.ndarray]
 DemoInput = Literal["waypoints", "keys", "pick_place", "file"]
+Criterion = Literal["follows", "succeeds"]
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,14 @@ class World(abc.ABC):
         simulated: a rollout's steps are a physics simulation (MuJoCo), so what they cost is
             the simulator's: `dfa bench` holds the sweep to the larger of its forward-pass
             and physics bounds (False by default: the forward-pass bound).
+        counterfactual: what makes an edited scene a counterfactual (search.lockstep).
+            "follows" (the paper's, by default): the policy's action at every step is the
+            demonstration's (within `epsilon`), each step from the state the policy's own
+            actions reached. "succeeds", for closed-loop control where a policy that does the
+            task still drifts a little from any one demonstration and its actions then differ
+            from those the demonstration took in other states: the policy, rolled out from
+            the edited scene to the horizon, does the task (R' holds). The demonstration then
+            shows the task can be done and gives the action distances the search ranks by.
     """
 
     name: str
@@ -134,6 +143,7 @@ class World(abc.ABC):
     scene_parameters: tuple[SceneParameter, ...] = ()
     appearance_concepts: frozenset[str] = frozenset()
     simulated: bool = False
+    counterfactual: Criterion = "follows"
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod

@@ -75,6 +75,7 @@ class MujocoWorld(Benchmark):
     lossless_frames = False
     demo_input = "file"
     simulated = True  # every step is the environment's own MuJoCo step
+    counterfactual = "succeeds"  # closed-loop control: judged by the environment's success
     distractors: tuple[str, ...] = ("distractor0",)
     slot_specs: tuple[SlotSpec, ...] = ()
     camera: dict | str = {}
