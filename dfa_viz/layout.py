@@ -48,7 +48,7 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
     if world.view3d is not None:
         from dfa_viz import scene3d
 
-        views += scene3d.views()
+        views += scene3d.views(world.view3d)
     one_step = world.horizon == 1
     if one_step:  # one point per rollout: bars, not curves
         plots: list = [

@@ -8,6 +8,7 @@ draws image row 0 at -y, so images are flipped vertically before they are sent.
 from __future__ import annotations
 
 import threading
+from dataclasses import dataclass
 
 import numpy as np
 import viser
@@ -65,8 +66,11 @@ class Canvas:
                 self.oblique_camera()  # the 3D objects, seen at an angle once they are drawn
             self._oblique_for = key if self._meshes_shown(view) else None
             image = self.state.demo_canvas()
-            if image is not None and self._meshes_shown(view):
-                image = np.broadcast_to(image[2, 2], image.shape)  # the bare table under the meshes
+            if self._meshes_shown(view):
+                if view.world.view3d.table_half_m is None:
+                    image = None  # the world's own table is one of the meshes
+                elif image is not None:  # the bare table under the meshes
+                    image = np.broadcast_to(image[2, 2], image.shape)
             if image is None:
                 if self.plane is not None:
                     self.plane.visible = False
@@ -98,11 +102,13 @@ class Canvas:
             return
         self.state.edit_demo(lambda d: d.click(float(u), float(v)))
 
-    # -- 3D scenes (tabletop) -----------------------------------------------------------------
+    # -- 3D scenes (the tabletop, the MuJoCo worlds) ------------------------------------------
     def show_scenes(self, view: View, step: int) -> None:
-        """Tabletop: the failed rollout's objects as meshes over the image plane at the slider's
-        step, with the counterfactual's as a translucent ghost (after the diagnosis). A world
-        without meshes: the failed rollout's frame at the slider's step on the plane."""
+        """A world with a 3D view: the failed rollout's objects as meshes at the slider's step
+        (over the image plane, as the bare table, where the view has a table of its own; a
+        MuJoCo world's table and gripper are meshes too), with the counterfactual's as a
+        wireframe ghost (after the diagnosis). A world without meshes: the failed rollout's
+        frame at the slider's step on the plane."""
         run = view.record
         show = self._meshes_shown(view)
         if not show:
@@ -144,35 +150,66 @@ class Canvas:
         )
 
     def _add_meshes(self, view3d, failed, counterfactual, step: int) -> dict[str, object]:
-        k = SIZE / (2 * view3d.view_half_m)  # metres -> scene units: the plane spans the view
-        nodes: dict[str, object] = {}
-        for name, traj, wireframe in (
-            ("failed", failed, False),
-            ("counterfactual", counterfactual, True),
-        ):
-            if traj is None:
-                continue
-            scene = traj.scenes[min(step, len(traj.scenes) - 1)]
-            poses = view3d.poses(scene)
-            if wireframe:  # the ghost: only what differs from the failed scene at this step
-                solid = {
-                    q.slot: q
-                    for q in view3d.poses(failed.scenes[min(step, len(failed.scenes) - 1)])
-                }
-                poses = [p for p in poses if _differs(p, solid.get(p.slot))]
-            for p in poses:
-                mesh = view3d.mesh(p.shape)
-                path = f"/scenes/{name}/{p.slot}"
-                nodes[path] = self.client.scene.add_mesh_simple(
-                    path,
+        return {
+            m.path: self.client.scene.add_mesh_simple(
+                m.path,
+                m.vertices,
+                m.faces,
+                color=m.rgb,
+                wireframe=m.wireframe,
+                wxyz=m.wxyz,
+                position=m.position,
+            )
+            for m in placed_meshes(view3d, failed, counterfactual, step)
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Placed:
+    """One mesh as the page draws it, in scene units (the view's centre at the plane's)."""
+
+    path: str
+    vertices: np.ndarray  # float32 (V, 3), in the object's frame
+    faces: np.ndarray  # uint32 (F, 3)
+    rgb: tuple[int, int, int]
+    wireframe: bool
+    wxyz: tuple[float, float, float, float]
+    position: tuple[float, float, float]
+
+
+def placed_meshes(view3d, failed, counterfactual, step: int) -> list[Placed]:
+    """The failed rollout's objects at `step` (solid) and those of the counterfactual that
+    differ from them (wireframes). Poses only, whether the view plays actions out or not: the
+    page shows steps."""
+    k = SIZE / (2 * view3d.view_half_m)  # metres -> scene units: the plane spans the view
+    cx, cy, cz = view3d.centre_m
+    out: list[Placed] = []
+    for name, traj, wireframe in (
+        ("failed", failed, False),
+        ("counterfactual", counterfactual, True),
+    ):
+        if traj is None:
+            continue
+        poses = view3d.poses(traj.scenes[min(step, len(traj.scenes) - 1)])
+        if wireframe:  # the ghost: only what differs from the failed scene at this step
+            solid = {
+                q.slot: q for q in view3d.poses(failed.scenes[min(step, len(failed.scenes) - 1)])
+            }
+            poses = [p for p in poses if _differs(p, solid.get(p.slot))]
+        for p in poses:
+            mesh = view3d.mesh(p.shape)
+            out.append(
+                Placed(
+                    f"/scenes/{name}/{p.slot}",
                     np.asarray(mesh.vertices, np.float32) * k,
                     np.asarray(mesh.faces, np.uint32),
-                    color=GHOST_RGB if wireframe else tuple(int(255 * c) for c in p.rgba[:3]),
-                    wireframe=wireframe,
-                    wxyz=p.quat,
-                    position=(p.pos[0] * k, p.pos[1] * k, p.pos[2] * k + 0.01),
+                    GHOST_RGB if wireframe else tuple(int(255 * c) for c in p.rgba[:3]),
+                    wireframe,
+                    p.quat,
+                    ((p.pos[0] - cx) * k, (p.pos[1] - cy) * k, (p.pos[2] - cz) * k + 0.01),
                 )
-        return nodes
+            )
+    return out
 
 
 def ray(event) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:

@@ -15,8 +15,9 @@ from sim.core.scene import Scene
 
 @dataclass(frozen=True)
 class ObjectPose:
-    """One present object: its shape (a name `View3D.mesh` knows), colour name and display RGBA
-    in [0, 1], position (3,) metres and orientation quat (w, x, y, z) of its body frame."""
+    """One present object (or one rigid part of it, e.g. a finger of the gripper): its shape (a
+    name `View3D.mesh` knows), colour name and display RGBA in [0, 1], position (3,) metres and
+    orientation quat (w, x, y, z) of its body frame, in the world's frame."""
 
     slot: str
     shape: str
@@ -53,14 +54,27 @@ class Look:
 
 
 class View3D(abc.ABC):
-    """The 3D scene of a world: a table top seen from above, objects with meshes on it."""
+    """The 3D scene of a world: objects with meshes at their poses, around `centre_m`.
 
-    table_half_m: float
-    """The table top is the square [-table_half_m, table_half_m]^2 at z = 0."""
-    table_thickness_m: float
-    table_rgb: tuple[int, int, int]
+    Two kinds of action: a view that `plays_actions` (the tabletop's pick-and-place: one action
+    is seconds of simulated carry and settling) gives the poses through each action
+    (`frames`); a closed-loop one (the MuJoCo worlds: one action is one short control step)
+    does not, its poses at each step being the rollout."""
+
+    centre_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """The point the views are centred on and look at (the table top's centre), metres."""
     view_half_m: float
-    """The square of the table the camera (the rendered frame) sees."""
+    """Half the side of the square around centre_m that the views frame (the tabletop's: the
+    square of the table its top-down camera, the rendered frame, sees)."""
+    table_half_m: float | None = None
+    """The table top is the square centre_m + [-table_half_m, table_half_m]^2 at centre_m's z,
+    drawn with the square its top-down camera sees; None: no table apart from the objects (a
+    world whose table is one of its slots draws it as one), and no top-down camera."""
+    table_thickness_m: float = 0.0
+    table_rgb: tuple[int, int, int] = (0, 0, 0)
+    plays_actions: bool = False
+    """`frames` plays an action out over simulated time (False: a closed-loop view, whose
+    poses at each step are the rollout)."""
 
     @abc.abstractmethod
     def poses(self, scene: Scene) -> list[ObjectPose]:
@@ -68,12 +82,22 @@ class View3D(abc.ABC):
 
     @abc.abstractmethod
     def mesh(self, shape: str):
-        """The mesh of a shape (a trimesh.Trimesh, metres, bottom at z = 0)."""
+        """The mesh of a shape (a trimesh.Trimesh, metres, in its body frame; the tabletop's:
+        bottom at z = 0)."""
 
     @abc.abstractmethod
-    def look(self, colour: str) -> Look:
-        """How `colour` is drawn."""
+    def look(self, shape: str, colour: str) -> Look:
+        """How `colour` is drawn on `shape`."""
 
     @abc.abstractmethod
+    def arrow(
+        self, scene: Scene, action: Sequence[float], after: Scene
+    ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """How `action`, taken in `scene` (giving `after`), is drawn: an arrow's (origin,
+        vector), metres (the tabletop's: from the pick point to the place point, above the
+        table; a closed-loop view's: the end effector's motion)."""
+
     def frames(self, scene: Scene, action: Sequence[float], *, every: int) -> Frames:
-        """The objects' poses every `every` physics steps while `action` plays out."""
+        """The objects' poses every `every` physics steps while `action` plays out (views that
+        `plays_actions` only)."""
+        raise NotImplementedError(f"{type(self).__name__} does not play actions out")

@@ -124,6 +124,7 @@ class FetchWorld(MujocoWorld):
 
     epsilon = 0.25  # per step, L1 over the 4 action components
     action_names = ("gripper dx", "gripper dy", "gripper dz", "fingers")
+    effector = "robot0:gripper_link"  # the gripper and its two fingers, in the 3D view
 
     def __init__(self, env_id: str) -> None:
         self.env_id, self.task = env_id, TASKS[env_id]

@@ -90,6 +90,9 @@ class MujocoWorld(Benchmark):
     drawn_groups: tuple[int, ...] = (0, 1, 2)
     """The geom groups the environment's camera draws (MuJoCo's default: 0, 1 and 2); a slot's
     visual geoms are those in these groups, and a distractor's block is in the first."""
+    effector: str | None = None
+    """The body of the end effector (the gripper): the 3D view (sim.mjworld.view3d) draws it
+    and every body below it, and an action as its motion; None: no end effector drawn."""
 
     def __init__(self, name: str, *, horizon: int, action_dim: int, size_px: int) -> None:
         self.name, self.horizon, self.action_dim = name, horizon, action_dim
@@ -116,6 +119,9 @@ class MujocoWorld(Benchmark):
         self.shifts = offered_shifts(self.workspace)
         self.nstate = len(self._state(env))
         self.head = ENV_STATE_AT + len(self.env_state(env))  # agent[head:] = the physics state
+        from sim.mjworld.view3d import MujocoView3D
+
+        self.view3d = MujocoView3D(self)  # its meshes read from the model when first asked for
 
     def all_slots(self) -> tuple[SlotSpec, ...]:
         """The package's slots, then the distractors (each a body that moves)."""

@@ -209,6 +209,7 @@ class RobosuiteWorld(MujocoWorld):
             *(SlotSpec(o.name, body=o.root_body, moves=True) for o in env.model.mujoco_objects),
             SlotSpec("table", body="table"),
         )
+        self.effector = env.robots[0].gripper[ARM].root_body  # the gripper, in the 3D view
         top = float(env.model.mujoco_arena.table_offset[2])
         self.workspace = replace(self.workspace, top_m=top)
         env.reset()
