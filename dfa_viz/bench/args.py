@@ -22,7 +22,7 @@ class BenchArgs:
 
     worlds: tuple[str, ...] = (*PAPER_WORLDS, "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12")
     """Which worlds to measure (the MiniGrid one with the stable-baselines3 agent of
-    docs/examples)."""
+    docs/examples; fetch:FetchPickAndPlace-v4 when named: its search alone, some minutes)."""
     repeats: int = 3
     """Timing repeats (the best is reported)."""
     page: bool = True

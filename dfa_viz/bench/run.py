@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.table import Table
 
 from dfa_viz.bench.args import BenchArgs
+from dfa_viz.bench.closed_loop import PAIRS
 from dfa_viz.bench.prior import bench_prior, prior_rows
 from dfa_viz.bench.search import bench_world
 from dfa_viz.bench.sweep import SWEPT, sweep_rows
@@ -54,6 +55,12 @@ class WorldBench:
     end to end with a target."""
     at_scale: bool = False
     """The search at scale (dfa_viz.bench.tabletop) instead."""
+    closed_loop: int | None = None
+    """A world whose counterfactual "succeeds" (World.counterfactual, the MuJoCo worlds): its
+    size-1 search (every single edit) and size-2 search (this many edits, the first in the
+    search's order) against the larger of the forward-pass and MuJoCo bounds and against the
+    naive loop (dfa_viz.bench.closed_loop), and nothing else: `dfa run` and the costs of its
+    policy take minutes each there. Not among `dfa bench`'s default worlds."""
 
 
 MINIGRID = "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12"
@@ -62,6 +69,7 @@ BENCHES = {
     "doorkey": WorldBench(whole_search=((1,), 0.5)),
     "tabletop": WorldBench(searches=False, at_scale=True),
     MINIGRID: WorldBench(policy="sb3:docs/examples/doorkey5x5_ppo.zip"),
+    "fetch:FetchPickAndPlace-v4": WorldBench(searches=False, closed_loop=PAIRS),
 }
 OUTSIDE_POLICIES = {name: b.policy for name, b in BENCHES.items() if b.policy is not None}
 MIN_RATIO = 10.0
@@ -122,6 +130,11 @@ def world_rows(name: str, args: BenchArgs) -> list[Row]:
     from dfa_viz.bench.costs import cost_rows
 
     bench = BENCHES.get(name, WorldBench())
+    if bench.closed_loop is not None:
+        from dfa_viz.bench.closed_loop import bench_closed_loop, closed_loop_rows
+
+        r = bench_closed_loop(name, pairs=bench.closed_loop, repeats=args.repeats)
+        return closed_loop_rows(name, r)
     rows: list[Row] = list(sweep_rows(name, repeats=args.repeats)) if name in SWEPT else []
     if name in PAPER_WORLDS:  # the learned search prior on planted size-2 tasks
         rows += prior_rows(bench_prior(name, n_eval=args.prior_tasks))

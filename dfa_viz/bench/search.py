@@ -12,13 +12,28 @@ from policy.model import probabilities
 from search import Candidate, combinations, rollout_lockstep
 from search.lockstep import compared_steps
 from sim import get_world
-from sim.core import Edit, Scene, Trajectory, World
+from sim.core import Edit, Scene, Task, Trajectory, World
 
 
 def naive_search(
-    world: World, policy: Policy, scene: Scene, demo: Trajectory, edits: list[Edit], epsilon: float
+    world: World,
+    policy: Policy,
+    scene: Scene,
+    demo: Trajectory,
+    edits: list[Edit],
+    epsilon: float,
+    task: Task | None = None,
 ) -> list[bool]:
-    """The baseline: one candidate at a time, a batch-1 render and forward per step."""
+    """The baseline: one candidate at a time, a batch-1 render and forward per step, each
+    judged as the world's counterfactual is (World.counterfactual, search.lockstep): "follows"
+    drops a candidate the first step its action leaves the demonstration's; "succeeds" rolls
+    each out as far as the search does and asks R' of `task` (default: `world.task_for(scene)`)
+    of its states (world.success)."""
+    if world.counterfactual == "succeeds":
+        task = task or world.task_for(scene)
+        return [
+            naive_rollout_succeeds(world, policy, world.apply(scene, e), demo, task) for e in edits
+        ]
     valid = []
     steps = compared_steps(world, demo)
     for edit in edits:
@@ -38,6 +53,19 @@ def naive_search(
                 s = world.step_batch([s], a)[0]
         valid.append(ok)
     return valid
+
+
+def naive_rollout_succeeds(
+    world: World, policy: Policy, scene: Scene, demo: Trajectory, task: Task
+) -> bool:
+    """One edited scene rolled out alone (a render, a batch-1 forward and the world's step of
+    one scene per step, as many steps as rollout_lockstep takes), judged by R' of `task`."""
+    scenes = [scene]
+    for _ in range(compared_steps(world, demo)):
+        out = policy.outputs(world.render(scenes[-1])[None])  # (1, A)
+        a = out.argmax(axis=1) if world.discrete else out
+        scenes.append(world.step_batch([scenes[-1]], a)[0])
+    return world.success(task, scenes)
 
 
 def bench_world(
