@@ -13,10 +13,11 @@ Poses     from the scene's physics state: the world's own `restore(scene)` (and
           each part's body `xpos`/`xquat`, or its site's
 Colours   the slot's colour concept over sim.mjworld.model.PALETTE; "as built" (and the
           effector): the colour MuJoCo draws its first visual geom with as the model builds it
-          (its material's while the geom's own rgba is the default, else its own)
+          (its material's while the geom's own rgba is the default, times its texture's mean
+          colour, else its own)
 Actions   closed loop (one action is one control step): the poses at each step are the rollout;
           an action is drawn as the end effector's motion over its step (`grip_pos`)
-The view   centred on the table top's middle of the world's Workspace, framing it with MARGIN_M
+View      centred on the table top's middle of the world's Workspace, framing it with MARGIN_M
           to spare; the table is one of the slots, so the view draws no table of its own
 """
 
@@ -35,6 +36,7 @@ EFFECTOR = "gripper"  # the end effector's parts are "gripper/<k>"
 SPHERE_COUNT = (16, 16)  # latitude, longitude segments of spheres, capsules and ellipsoids
 SECTIONS = 24  # segments round a cylinder
 DEFAULT_RGBA = (0.5, 0.5, 0.5, 1.0)  # a geom's rgba unless its model says otherwise
+TEXTURE_RGB = 1  # mujoco.mjtTextureRole.mjTEXROLE_RGB: a material's colour texture
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +85,7 @@ class MujocoView3D(View3D):
     def poses(self, scene: Scene) -> list[ObjectPose]:
         import mujoco
 
+        from sim.mjworld.model import AS_BUILT
         from sim.mjworld.world import COLOUR
 
         w, out = self._world, []
@@ -131,9 +134,6 @@ class MujocoView3D(View3D):
         return tuple(float(v) for v in a), tuple(float(v) for v in b - a)
 
 
-AS_BUILT = "as built"  # sim.mjworld.model.AS_BUILT, without importing MuJoCo
-
-
 def _rgba(part: Part, colour: str) -> tuple[float, float, float, float]:
     from sim.mjworld.model import PALETTE
 
@@ -167,10 +167,24 @@ def _read_parts(world) -> tuple[Part, ...]:
 
 def _shown(model, rgba, matid: int) -> np.ndarray:
     """The rgba MuJoCo draws a geom with: its material's while the geom's own is the default
-    one, else its own."""
+    one (a textured material's times its texture's mean colour), else its own."""
     if matid >= 0 and np.allclose(rgba, DEFAULT_RGBA):
-        return np.array(model.mat_rgba[matid], float)
+        out = np.array(model.mat_rgba[matid], float)
+        out[:3] *= _texture_mean(model, int(model.mat_texid[matid][TEXTURE_RGB]))
+        return out
     return np.array(rgba, float)
+
+
+def _texture_mean(model, tex: int) -> np.ndarray:
+    """float (3,) in [0, 1]: the mean colour of texture `tex` (ones for none)."""
+    if tex < 0:
+        return np.ones(3)
+    n = model.tex_height[tex] * model.tex_width[tex] * model.tex_nchannel[tex]
+    pixels = np.asarray(model.tex_data[model.tex_adr[tex] : model.tex_adr[tex] + n], float)
+    pixels = pixels.reshape(-1, model.tex_nchannel[tex])
+    if pixels.shape[1] < 3:
+        return np.full(3, pixels[:, 0].mean() / 255)
+    return pixels[:, :3].mean(axis=0) / 255
 
 
 def _body_parts(

@@ -136,3 +136,25 @@ def test_an_action_is_drawn_as_the_grippers_motion(world, demo):
         grip = [np.array(_physics(world, s).site("robot0:grip").xpos) for s in (before, after)]
         assert np.allclose(origin, grip[0], atol=1e-9)
         assert np.allclose(np.add(origin, vector), grip[1], atol=1e-9)
+
+
+def test_robosuite_stack_is_drawn_from_its_own_model():
+    """The same view on another package's model: robosuite's textured cubes in the colours
+    their textures show (cube A red, cube B green), the gripper's bodies, poses at the bodies."""
+    world = sim.get_world("robosuite:Stack")
+    view, scene = world.view3d, world.train_task(0).scene
+    rgb = {p.name: p.rgba[:3] for p in view.parts()}
+    assert rgb["cubeA"][0] > max(rgb["cubeA"][1:]) + 0.2
+    assert rgb["cubeB"][1] > max(rgb["cubeB"][0], rgb["cubeB"][2]) + 0.1
+    data = _physics(world, scene)
+    poses = {p.slot: p for p in view.poses(scene)}
+    gripper = [p for p in view.parts() if p.slot is None]
+    assert len(gripper) >= 3 and set(poses) == {"cubeA", "cubeB", "table"} | {
+        p.name for p in gripper
+    }
+    for part in view.parts():
+        if part.name in poses:
+            assert np.allclose(poses[part.name].pos, data.xpos[part.body], atol=1e-9)
+    # the table's top face at the view's centre height
+    top = poses["table"].pos[2] + view.mesh("table").bounds[1][2]
+    assert abs(top - view.centre_m[2]) < 1e-6
