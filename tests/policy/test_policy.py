@@ -47,3 +47,10 @@ def test_replay_keeps_what_the_base_policy_could_do(nav, nav_policy):
     assert solved(alone) <= len(train) // 2
     assert solved(kept) >= len(train) - 1
     assert np.isfinite(losses).all()
+
+
+def test_training_demonstrations_are_made_once_per_process(nav):
+    first, again = training_demos(nav), training_demos(nav)
+    assert first is not again and all(a is b for a, b in zip(first, again, strict=True))
+    first.pop()  # the caller's own list
+    assert len(training_demos(nav)) == len(again)
