@@ -62,7 +62,14 @@ def transform(scene: Scene, ops: Sequence[Op]) -> Scene:
 def stacked(scene: Scene, ops: Sequence[Op]) -> bool:
     """True when an object the ops add shares its place with another present object of the
     (transformed) scene."""
-    if not any(isinstance(op, Add) for op in ops):
+    added = {op.slot for op in ops if isinstance(op, Add)}
+    if not added:
         return False
-    places = [tuple(np.round(o.pos[:2], 6)) for o in scene.objects if o.present]
-    return len(places) != len(set(places))
+
+    def place(o) -> tuple[float, ...]:
+        return tuple(np.round(o.pos[:2], 6))
+
+    taken = [place(o) for o in scene.objects if o.present and o.slot not in added]
+    new = [place(scene.obj(slot)) for slot in sorted(added)]
+    # objects the scene already had may share a place (a MuJoCo table and the target it holds)
+    return len(set(new)) != len(new) or any(p in taken for p in new)

@@ -9,7 +9,7 @@ import pytest
 from policy import augment, failing_test_task, training_demos
 from policy import variants as A
 from sim import get_world
-from sim.core import Feedback, Label
+from sim.core import ABSENT, PRESENCE, PRESENT, Feedback, Label
 from sim.core.ops import transform
 
 
@@ -135,3 +135,16 @@ def test_the_first_variants_look_like_the_test_task(nav, nav_policy, known):
     look = task.scene.obj("distractor").values
     added = [transform(srcs[k].task.scene, ops).obj("distractor") for k, ops in chosen]
     assert all(d.present and d.values == look for d in added)
+
+
+def test_a_block_is_added_to_a_fetch_scene_whose_table_shares_the_targets_place():
+    world = get_world("fetch:FetchPickAndPlace-v4")
+    task = world.test_task("distractor_ti", 0)
+    table, target = task.scene.obj("table").pos[:2], task.scene.obj("target").pos[:2]
+    assert np.allclose(table, target)  # what once made every added block count as stacked
+    demo = world.demonstrate(task)
+    said = Feedback((Label("distractor0", PRESENCE, False, (PRESENT, ABSENT)),))
+    aug = augment(world, task, demo, said, n=6)
+    added = [a.scenes[0].obj("distractor0") for a in aug if a.scenes[0].obj("distractor0").present]
+    assert len(aug) == 6 and len(added) >= 5
+    assert len({o.pos[:2] for o in added}) > 1  # on more than one free spot
