@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pytest
 import rerun as rr
+import rrd_read
 
 from dfa_viz.cli import main
 from dfa_viz.configs import AdaptConfig, Finetuning
@@ -119,17 +120,6 @@ def _search(world, policy, task, *, max_size: int = 2):
     assert demo.success
     config = SearchConfig.for_world(world, max_size=max_size)
     return counterfactual_search(world, policy, task.scene, demo, config=config)
-
-
-def _chunks(path) -> dict[str, list[dict]]:
-    by_entity: dict[str, list[dict]] = {}
-    for chunk in rr.chunk.RrdReader(path).store().stream():
-        by_entity.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch().to_pydict())
-    return by_entity
-
-
-def _column(chunks: list[dict], name: str) -> list:
-    return [v for c in chunks if name in c for v in c[name]]
 
 
 # -- every paper world ------------------------------------------------------------------------
@@ -271,7 +261,7 @@ def test_doorkey_dfa_run_recording_is_lossless(loaded, failing, cli_run):
         lines = [ln for ln in summary.splitlines() if ln.startswith(f"/rollouts/{name}/frame ")]
         assert lines and all("Image:buffer" in ln for ln in lines), name
         assert not any("EncodedImage" in ln for ln in lines), name
-    chunks = _chunks(r["recording"])
+    chunks = rrd_read.chunks(r["recording"])
     cands = sorted(e for e in chunks if e.startswith("/search/candidates/c"))
     assert len(cands) == r["candidates_tried"] > 0
     rows = sorted(  # the failed rollout's frames are stored bit for bit
@@ -317,22 +307,22 @@ def test_tabletop_object_shift_counterfactuals_all_change_the_cause(loaded, fail
 
 
 def test_tabletop_dfa_run_recording_holds_the_scene_in_3d(cli_run):
-    chunks = _chunks(cli_run("tabletop")["recording"])
+    chunks = rrd_read.chunks(cli_run("tabletop")["recording"])
     for rollout in ("failed", "demonstration", "counterfactual", "finetuned"):
         base = f"/scene3d/{rollout}"
         assert f"/rollouts/{rollout}/frame" in chunks
-        assert _column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
+        assert rrd_read.column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
         for slot in ("object", "goal"):
             rows = chunks[f"{base}/{slot}"]
-            mesh = _column(rows, "Mesh3D:vertex_positions")
+            mesh = rrd_read.column(rows, "Mesh3D:vertex_positions")
             assert len(mesh) == 1 and len(mesh[0]) >= 12  # logged once, static
-            assert _column(rows, "Mesh3D:triangle_indices")
-            assert sorted(_column(rows, "step")) == [0, 1]
+            assert rrd_read.column(rows, "Mesh3D:triangle_indices")
+            assert sorted(rrd_read.column(rows, "step")) == [0, 1]
             sim_time = [c for c in rows if "sim_time" in c]
-            times = _column(sim_time, "sim_time")
+            times = rrd_read.column(sim_time, "sim_time")
             assert len(times) >= 2 and times == sorted(times)
             # the simulated carry ends where the rollout's step 1 is
-            moves = np.array([v[0] for v in _column(sim_time, "Transform3D:translation")])
+            moves = np.array([v[0] for v in rrd_read.column(sim_time, "Transform3D:translation")])
             at_step = {
                 s: v[0]
                 for c in rows
@@ -343,5 +333,5 @@ def test_tabletop_dfa_run_recording_holds_the_scene_in_3d(cli_run):
             assert np.allclose(moves[0], at_step[0], atol=1e-5)
     # the demonstration carries the object: lifted above the table, then set down on the goal
     rows = chunks["/scene3d/demonstration/object"]
-    moves = _column([c for c in rows if "sim_time" in c], "Transform3D:translation")
+    moves = rrd_read.column([c for c in rows if "sim_time" in c], "Transform3D:translation")
     assert len(moves) >= 10 and max(v[0][2] for v in moves) > 0.1

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-import rerun as rr
+import rrd_read
 
 import sim
 from dfa_viz import scene3d
@@ -33,14 +33,7 @@ def _record(tmp_path, world, name, traj) -> dict[str, list[dict]]:
     rrd = RrdFile(path, recording_id(world.name, "test", 0))
     scene3d.log_rollout(rrd.rec, world, name, traj)
     rrd.close()
-    by_entity: dict[str, list[dict]] = {}
-    for chunk in rr.chunk.RrdReader(path).store().stream():
-        by_entity.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch().to_pydict())
-    return by_entity
-
-
-def _column(chunks: list[dict], name: str) -> list:
-    return [v for c in chunks if name in c for v in c[name]]
+    return rrd_read.chunks(path)
 
 
 def _by_step(chunks: list[dict], name: str) -> dict[int, list]:
@@ -52,12 +45,12 @@ def test_a_fetch_rollout_holds_a_pose_per_step(tmp_path, fetch):
     chunks = _record(tmp_path, world, "demonstration", demo)
     base = "/scene3d/demonstration"
     assert f"{base}/table" in chunks and f"{base}/view" not in chunks  # the table: a slot
-    assert not _column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
+    assert not rrd_read.column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
     steps = list(range(demo.horizon + 1))
     view = world.view3d
     for slot in ("object", "target", "table", "gripper/0", "gripper/1", "gripper/2"):
         rows = chunks[f"{base}/{slot}"]
-        mesh = _column(rows, "Mesh3D:vertex_positions")
+        mesh = rrd_read.column(rows, "Mesh3D:vertex_positions")
         assert len(mesh) == 1 and len(mesh[0]) >= 36, slot  # logged once, static
         assert not [c for c in rows if "sim_time" in c], slot  # closed loop: steps only
         at = _by_step(rows, "Transform3D:translation")
@@ -90,13 +83,13 @@ def test_a_tabletop_rollout_plays_its_pick_and_place_out(tmp_path):
     demo = world.demonstrate(world.train_task(0))
     chunks = _record(tmp_path, world, "demonstration", demo)
     base = "/scene3d/demonstration"
-    assert _column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
-    assert _column(chunks[f"{base}/view"], "LineStrips3D:strips")
+    assert rrd_read.column(chunks[f"{base}/table"], "Boxes3D:half_sizes")
+    assert rrd_read.column(chunks[f"{base}/view"], "LineStrips3D:strips")
     rows = chunks[f"{base}/object"]
     assert sorted(_by_step(rows, "Transform3D:translation")) == [0, 1]
-    times = _column([c for c in rows if "sim_time" in c], "sim_time")
+    times = rrd_read.column([c for c in rows if "sim_time" in c], "sim_time")
     assert len(times) >= 10 and times == sorted(times)
-    (origin,) = _column(chunks[f"{base}/action"], "Arrows3D:origins")
+    (origin,) = rrd_read.column(chunks[f"{base}/action"], "Arrows3D:origins")
     a = np.asarray(demo.actions[0], float)
     assert np.allclose(origin[0], (a[0], a[1], 0.15), atol=1e-6)  # above the pick point
     assert chunks[f"{base}/trail/object"]
