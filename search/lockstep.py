@@ -124,8 +124,8 @@ def rollout_lockstep(
         live = live[keep]
         if len(live) and (t + 1 < steps or not follows):
             scenes = world.step_batch([scenes[i] for i in keep], acts[keep])
-            for i, s in zip(live, scenes, strict=True):
-                history[i].append(s)
+            for k, s in zip(live, scenes, strict=True):
+                history[k].append(s)
     if not follows:
         task = task or world.task_for(scene)
         for i in range(n):
