@@ -91,6 +91,9 @@ class SearchResult:
     def from_json(cls, d: dict) -> SearchResult:
         """Read back `to_json` (UserError if malformed); `complete` defaults to True and
         `criterion` to "follows"."""
+        criterion = d.get("criterion", "follows")
+        if criterion not in ("follows", "succeeds"):
+            raise UserError(f"malformed search result (criterion {criterion!r})")
         try:
             return cls(
                 tuple(Candidate.from_dict(c) for c in d["counterfactuals"]),
@@ -98,7 +101,7 @@ class SearchResult:
                 d["size"],
                 d["max_size"],
                 bool(d.get("complete", True)),
-                str(d.get("criterion", "follows")),
+                criterion,
             )
         except (KeyError, TypeError) as e:
             raise UserError(f"malformed search result ({type(e).__name__}: {e})") from None

@@ -7,7 +7,7 @@ import pytest
 from policy import failing_test_task
 from search import SearchConfig, SearchResult, counterfactual_search, singles
 from search.lockstep import rollout_lockstep
-from sim.core import EMPTY, Change, Edit
+from sim.core import EMPTY, Change, Edit, UserError
 from sim.nav2d.world import Nav2DWorld
 
 
@@ -60,6 +60,8 @@ def test_the_search_answers_in_the_worlds_terms(closed, nav, nav_policy):
     assert Edit.of(undo) in {c.edit for c in result.counterfactuals}
     back = SearchResult.from_json(result.to_json())
     assert back.criterion == "succeeds"
+    with pytest.raises(UserError, match="criterion 'nearby'"):
+        SearchResult.from_json({**result.to_json(), "criterion": "nearby"})
     none = SearchResult((), result.tried, None, 1, criterion="succeeds")
     assert "makes the policy do the task" in none.summary()
 
