@@ -41,7 +41,7 @@ class TrainConfig:
 BASE = TrainConfig()
 FINETUNE = TrainConfig(steps=300, lr=5e-4)
 DEMOS_KEPT = 4  # worlds whose training demonstrations a process keeps (training_demos)
-_DEMOS: dict[tuple, tuple[Trajectory, ...]] = {}
+_DEMOS: dict[tuple[int, int], tuple[World, tuple[Trajectory, ...]]] = {}  # (id, seed) -> kept
 
 # loss per step -> None; the recorder and the page draw the curve from these
 LossCallback = Callable[[int, float], None]
@@ -224,17 +224,17 @@ def training_tasks(world: World, seed: int = 0) -> list[Task]:
 
 def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
     """The expert demonstrations of the training tasks a base policy is cloned on (with the
-    world's action noise, each seeded by its task's seed). Made once per process for the
-    last few worlds asked (a run checks the base policy's recipe with them, then replays them
+    world's action noise, each seeded by its task's seed). Made once per world object for the
+    last few asked (a run checks the base policy's recipe with them, then replays them
     while finetuning: 200 MuJoCo demonstrations take minutes)."""
-    key = (type(world), world.name, seed, world.cloning)
-    if key not in _DEMOS:
+    key = (id(world), seed)
+    if key not in _DEMOS or _DEMOS[key][0] is not world:
         noise = world.cloning.noise
         tasks = training_tasks(world, seed)
-        _DEMOS[key] = tuple(world.demonstrate(t, noise=noise, seed=t.seed) for t in tasks)
+        _DEMOS[key] = (world, tuple(world.demonstrate(t, noise=noise, seed=t.seed) for t in tasks))
         while len(_DEMOS) > DEMOS_KEPT:
             del _DEMOS[next(iter(_DEMOS))]
-    return list(_DEMOS[key])
+    return list(_DEMOS[key][1])
 
 
 def clone_base(
