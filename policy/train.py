@@ -227,8 +227,8 @@ def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
     world's action noise, each seeded by its task's seed). Made once per world object for the
     last few asked (a run checks the base policy's recipe with them, then replays them
     while finetuning: 200 MuJoCo demonstrations take minutes)."""
-    key = (id(world), seed)
-    if key not in _DEMOS or _DEMOS[key][0] is not world:
+    key = (id(world), seed)  # the world is kept beside its demonstrations: no other takes its id
+    if key not in _DEMOS:
         noise = world.cloning.noise
         tasks = training_tasks(world, seed)
         _DEMOS[key] = (world, tuple(world.demonstrate(t, noise=noise, seed=t.seed) for t in tasks))

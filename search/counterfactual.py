@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -12,6 +13,7 @@ from search.lockstep import Candidate, rollout_lockstep
 from search.pauses import paused
 from search.prior import LearnedPrior, unedited_candidate
 from sim.core import Change, Scene, Task, Trajectory, UserError, World
+from sim.core.world import Criterion
 
 # (size, candidates done, candidates in this size) -> None
 ProgressCallback = Callable[[int, int, int], None]
@@ -92,7 +94,7 @@ class SearchResult:
         """Read back `to_json` (UserError if malformed); `complete` defaults to True and
         `criterion` to "follows"."""
         criterion = d.get("criterion", "follows")
-        if criterion not in ("follows", "succeeds"):
+        if criterion not in typing.get_args(Criterion):
             raise UserError(f"malformed search result (criterion {criterion!r})")
         try:
             return cls(
