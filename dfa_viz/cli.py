@@ -123,7 +123,9 @@ def describe(world) -> str:
     acts = f"{world.action_dim} discrete" if world.discrete else f"{world.action_dim}-d continuous"
     kind = "shifts " + "/".join(world.shifts) if world.shifts else "diagnosis from a demonstration"
     steps = "1 step" if world.horizon == 1 else f"up to {world.horizon} steps"
-    demo = world.demo_input.replace("_", " and ")
+    demo = {"pick_place": "pick and place", "effector": "clicked gripper waypoints"}.get(
+        world.demo_input, world.demo_input
+    )
     return (
         f"{' '.join(slots)}; frames {world.obs_shape[0]}x{world.obs_shape[1]}, {acts} actions, "
         f"{steps}; demonstrations by {demo}; {kind}"

@@ -10,6 +10,7 @@ UserError the world raised) with a message that says what was expected and what 
 
 from __future__ import annotations
 
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -19,6 +20,7 @@ from gymnasium.utils.env_checker import check_env
 
 from sim.core import SHIFTS, Edit, Key, UserError, apply, single_changes
 from sim.core.view3d import View3D
+from sim.core.world import DemoInput
 
 
 def expect(condition: bool, message: str) -> None:
@@ -109,8 +111,8 @@ def round_trips(world) -> None:
 def capabilities(world) -> None:
     """The capabilities the tools read are declared consistently."""
     expect(
-        world.demo_input in ("waypoints", "keys", "pick_place", "file"),
-        f"demo_input is {world.demo_input!r}; accepted: waypoints, keys, pick_place, file",
+        world.demo_input in typing.get_args(DemoInput),
+        f"demo_input is {world.demo_input!r}; accepted: {', '.join(typing.get_args(DemoInput))}",
     )
     if world.demo_input == "keys":
         expect(world.discrete, "demo_input 'keys' needs discrete actions")
@@ -128,6 +130,8 @@ def capabilities(world) -> None:
             world.image_extent is not None and not world.discrete,
             f"demo_input {world.demo_input!r} needs image_extent and continuous actions",
         )
+    if world.demo_input == "effector":
+        expect(not world.discrete, "demo_input 'effector' needs continuous actions")
     expect(
         isinstance(world.lossless_frames, bool) and isinstance(world.search_first_only, bool),
         "lossless_frames and search_first_only must be bools",

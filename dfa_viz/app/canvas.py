@@ -1,7 +1,8 @@
 """The 3D view of one tab: the task's top-down image on a clickable plane (demonstrations are
 given by clicking it), and, for worlds with meshes, the failed and counterfactual scenes in 3D.
 
-The plane spans [-SIZE/2, SIZE/2]^2 at z = 0, seen from above with +y up the screen. viser
+The plane lies at z = 0, centred on the origin, SIZE along the longer side of the frame and
+as long along the other as the frame's shape gives, seen from above with +y up the screen. viser
 draws image row 0 at -y, so images are flipped vertically before they are sent.
 """
 
@@ -25,6 +26,7 @@ class Canvas:
         self.client, self.state, self.notify = client, state, notify
         self._lock = threading.Lock()
         self.plane: viser.ImageHandle | None = None
+        self._plane_shape = (SIZE, SIZE)  # (width, height) in scene units: the frame's shape
         self._shown: tuple | None = None
         self._meshes: tuple | None = None
         self._frame: tuple | None = None  # (rollout, step) the plane shows, for flat worlds
@@ -76,10 +78,15 @@ class Canvas:
                     self.plane.visible = False
                 return
             image = np.ascontiguousarray(np.flipud(image))
-            if self.plane is None:
+            h, w = image.shape[:2]  # the plane keeps the frame's shape: SIZE along its longer side
+            shape = (SIZE, SIZE * h / w) if w >= h else (SIZE * w / h, SIZE)
+            if self.plane is None or shape != self._plane_shape:
+                if self.plane is not None:
+                    self.plane.remove()
                 self.plane = self.client.scene.add_image(
-                    "/canvas", image, SIZE, SIZE, format="png", receive_shadow=False
+                    "/canvas", image, *shape, format="png", receive_shadow=False
                 )
+                self._plane_shape = shape
             else:
                 self.plane.image = image
                 self.plane.visible = True
@@ -93,7 +100,8 @@ class Canvas:
         if o is None:
             return
         hit = o - o[2] / d[2] * d  # (3,) on z = 0
-        u, v = hit[0] / SIZE + 0.5, 0.5 - hit[1] / SIZE
+        width, height = self._plane_shape
+        u, v = hit[0] / width + 0.5, 0.5 - hit[1] / height
         view = self.state.snapshot()
         if self.covered or view.stage != "demonstrate" or view.demo_kind != "clicks":
             return

@@ -4,6 +4,8 @@
 - "waypoints": click waypoints on the image; the agent follows the path at constant speed.
 - "keys": keys or buttons (World.keys), one step each.
 - "pick_place": click the pick point, then the place point.
+- "effector": click waypoints of a robot's end effector on its frames (the object to grasp it,
+  points on the table, a point in the air clicked in two views); the world leads it through.
 - "file" (or any world without one of these): only the scripted expert, where there is one.
 
 Every input shows a canvas (the task's top-down image, upscaled, with what the user did drawn
@@ -17,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from dfa_viz.app import frames
-from sim.core import Key, Task, Trajectory, UserError, World
+from sim.core import Key, Task, Trajectory, UserError, Waypoint, World
 
 NEAR_SHARE = 0.08  # a click within this share of the image's width is on an object
 
@@ -288,10 +290,79 @@ class PickPlaceDemo(DemoInput):
         )
 
 
+class EffectorDemo(DemoInput):
+    """ "effector": waypoints of a robot's end effector clicked on its frames
+    (World.effector_waypoint); the world leads the end effector through them (World.follow)."""
+
+    kind = "clicks"
+    hint = (
+        "Click where the gripper should go, in order: the object, to grasp it, then where to "
+        "take it (on the table; for a point in the air, click it in the first view, then the "
+        "same point in the view beside it)."
+    )
+
+    def __init__(self, world: World, task: Task) -> None:
+        super().__init__(world, task)
+        self.waypoints: list[Waypoint] = []
+        self.clicks: list[list[tuple[float, float]]] = []  # (u, v) of the clicks that made each
+
+    def click(self, u: float, v: float) -> None:
+        last = self.waypoints[-1] if self.waypoints else None
+        w = self.world.effector_waypoint(self.task.scene, u, v, last)
+        if w is None:
+            raise UserError("that click met nothing: click on the table, the object or the target")
+        if w.replaces:
+            self.waypoints[-1], self.clicks[-1] = w, [*self.clicks[-1][:1], (u, v)]
+        else:
+            self.waypoints.append(w)
+            self.clicks.append([(u, v)])
+
+    def undo(self) -> None:
+        if self.waypoints:
+            self.waypoints.pop()
+            self.clicks.pop()
+
+    def clear(self) -> None:
+        self.waypoints.clear()
+        self.clicks.clear()
+
+    def given(self) -> bool:
+        return bool(self.waypoints)
+
+    def _given_key(self) -> tuple:
+        return tuple(self.waypoints)
+
+    def summary(self) -> str:
+        n = len(self.waypoints)
+        said = ", then ".join(w.describe() for w in self.waypoints)
+        return f"{n} waypoint{'s' if n > 1 else ''}: {said}" if n else ""
+
+    def _make(self) -> Trajectory:
+        return self.world.follow(self.task, self.waypoints)
+
+    def canvas(self) -> np.ndarray:
+        image = super().canvas()
+        labels = [str(i + 1) for i in range(len(self.clicks))]
+        image = frames.mark_points(
+            image, [c[0] for c in self.clicks], colours=((255, 140, 0),), labels=labels
+        )
+        placed = [(c[1], label) for c, label in zip(self.clicks, labels, strict=True) if len(c) > 1]
+        if placed:  # the second clicks, in the view beside the first
+            image = frames.mark_points(
+                image,
+                [uv for uv, _ in placed],
+                colours=((0, 200, 255),),
+                labels=[label for _, label in placed],
+                line=False,
+            )
+        return image
+
+
 INPUTS: dict[str, type[DemoInput]] = {
     "waypoints": WaypointDemo,
     "keys": KeyDemo,
     "pick_place": PickPlaceDemo,
+    "effector": EffectorDemo,
 }
 
 

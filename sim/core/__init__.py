@@ -11,6 +11,7 @@ from sim.core.concepts import (
 )
 from sim.core.demonstration import check_demonstration, require_success
 from sim.core.edit import EMPTY, Change, Edit, apply, apply_many, effective, single_changes
+from sim.core.effector import Waypoint
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
 from sim.core.scene import Obj, Scene
@@ -55,6 +56,7 @@ __all__ = [
     "Trajectory",
     "UserConcept",
     "UserError",
+    "Waypoint",
     "World",
     "apply",
     "apply_many",

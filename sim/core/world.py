@@ -11,6 +11,7 @@ import numpy as np
 
 from sim.core.concepts import ConceptSpace
 from sim.core.edit import Edit, apply, apply_many
+from sim.core.effector import Waypoint
 from sim.core.errors import UserError
 from sim.core.parameters import SceneParameter
 from sim.core.scene import Scene
@@ -20,7 +21,7 @@ from sim.core.view3d import View3D
 
 # obs uint8 (B, H, W, 3) -> actions float32 (B, A) or int64 (B,)
 ActBatch = Callable[[np.ndarray], np.ndarray]
-DemoInput = Literal["waypoints", "keys", "pick_place", "file"]
+DemoInput = Literal["waypoints", "keys", "pick_place", "effector", "file"]
 Criterion = Literal["follows", "succeeds"]
 
 
@@ -84,7 +85,8 @@ class World(abc.ABC):
         demo_input: how the page takes a demonstration: "waypoints" (clicks on the image; an
             action moves the agent, scene.agent[:2], by (dx, dy)), "keys" (`keys`, one step
             each), "pick_place" (a click to pick, one to place: action (pick x, y, place x,
-            y)), or "file" (a saved trajectory only).
+            y)), "effector" (waypoints of a robot's end effector clicked on its frames:
+            `effector_waypoint` and `follow`), or "file" (a saved trajectory only).
         keys, idle_action: for "keys", the buttons and hotkeys, and the action that fills the
             steps left after the user stops.
         image_extent: (x_left, x_right, y_bottom, y_top) of the rendered frame in the world's
@@ -161,6 +163,20 @@ class World(abc.ABC):
     def apply_batch(self, scene: Scene, edits: Sequence[Edit]) -> list[Scene]:
         """[self.apply(scene, e) for e in edits], each slot's changes made once per batch."""
         return apply_many(self.space, scene, edits)
+
+    def effector_waypoint(
+        self, scene: Scene, u: float, v: float, last: Waypoint | None
+    ) -> Waypoint | None:
+        """demo_input "effector": the waypoint a click at (u, v) on a frame of `scene` makes
+        (u to the right, v down, each in [0, 1] over the whole frame); `last`: the waypoint
+        clicked before it, which a click in a view that sets heights moves. None: the click
+        met nothing it could mean."""
+        raise UserError(f"{self.name} takes no clicked waypoints")
+
+    def follow(self, task: Task, waypoints: Sequence[Waypoint]) -> Trajectory:
+        """demo_input "effector": the rollout of the end effector led through `waypoints`
+        from the task's scene."""
+        raise UserError(f"{self.name} takes no clicked waypoints")
 
     # -- dynamics -----------------------------------------------------------------------------
     @abc.abstractmethod

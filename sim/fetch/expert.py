@@ -23,7 +23,7 @@ PUSH_STEP_M = 0.03  # how far past the object's back face the pusher aims each s
 PUSH_LIFT_M = 0.06  # and travels this high over the table until it is there
 
 
-def _move(to: np.ndarray, grip: np.ndarray, fingers: float) -> np.ndarray:
+def move(to: np.ndarray, grip: np.ndarray, fingers: float) -> np.ndarray:
     a = np.zeros(4)
     a[:3] = GAIN * (to - grip)
     a[3] = fingers
@@ -42,12 +42,12 @@ def pick_and_place(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: f
         to = np.array([goal[0], goal[1], height])
         if obj[2] < min(height, CARRY_Z_M) - 0.02 and far > ARRIVED_M:  # up off the table first
             to = np.array([obj[0], obj[1], height])
-        return _move(to + (grip - obj), grip, -1.0)
+        return move(to + (grip - obj), grip, -1.0)
     off = float(np.linalg.norm(d[:2]))
     hover = min(HOVER_M, 4.0 * max(0.0, off - LINED_UP_M))
     above = obj + np.array([0.0, 0.0, hover])
     grasp = np.linalg.norm(d) < GRASP_M or (off < LINED_UP_M and abs(d[2]) < GRASP_M)
-    return _move(above, grip, -1.0 if grasp else 1.0)
+    return move(above, grip, -1.0 if grasp else 1.0)
 
 
 def push(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: float) -> np.ndarray:
@@ -55,7 +55,7 @@ def push(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: float) -> n
     then along the line through it until its centre is on the goal."""
     way = goal[:2] - obj[:2]
     if np.linalg.norm(way) < 1e-6:
-        return _move(grip, grip, -1.0)
+        return move(grip, grip, -1.0)
     way = way / np.linalg.norm(way)
     rel = grip[:2] - obj[:2]
     along = float(np.dot(rel, way))
@@ -63,15 +63,15 @@ def push(grip: np.ndarray, obj: np.ndarray, goal: np.ndarray, width: float) -> n
     behind = np.append(obj[:2] - PUSH_BEHIND_M * way, obj[2])
     low = grip[2] < obj[2] + 0.015
     if np.linalg.norm(goal[:2] - obj[:2]) < 0.01:  # there: hold still
-        return _move(grip, grip, -1.0)
+        return move(grip, grip, -1.0)
     if along < -0.02 and across < 0.02 and low:  # in place: nudge it along the line
         step = min(PUSH_STEP_M, 0.5 * float(np.linalg.norm(goal[:2] - obj[:2])))
-        return _move(np.append(obj[:2] - (0.03 - step) * way, obj[2]), grip, -1.0)
+        return move(np.append(obj[:2] - (0.03 - step) * way, obj[2]), grip, -1.0)
     if np.linalg.norm(grip[:2] - behind[:2]) < 0.015:  # over the spot: down beside the object
-        return _move(behind, grip, -1.0)
-    return _move(behind + np.array([0.0, 0.0, PUSH_LIFT_M]), grip, -1.0)
+        return move(behind, grip, -1.0)
+    return move(behind + np.array([0.0, 0.0, PUSH_LIFT_M]), grip, -1.0)
 
 
 def reach(grip: np.ndarray, obj: np.ndarray | None, goal: np.ndarray, width: float) -> np.ndarray:
     """The gripper to the goal."""
-    return _move(goal, grip, 1.0)
+    return move(goal, grip, 1.0)

@@ -76,10 +76,10 @@ def slide(
         if float(np.linalg.norm(rel)) < NEAR_M:
             return HOLD.copy()
     if np.linalg.norm(grip[:2] - behind) < 0.015:  # over the spot: down
-        return X._move(np.append(behind, obj[2]), grip, -1.0)
+        return X.move(np.append(behind, obj[2]), grip, -1.0)
     if low:  # beside the puck, low: up first, clear of it
-        return X._move(np.append(grip[:2], obj[2] + ABOVE_M), grip, -1.0)
-    return X._move(np.append(behind, obj[2] + ABOVE_M), grip, -1.0)
+        return X.move(np.append(grip[:2], obj[2] + ABOVE_M), grip, -1.0)
+    return X.move(np.append(behind, obj[2] + ABOVE_M), grip, -1.0)
 
 
 def _force(reach: Callable[[float], float], dist: float) -> float:

@@ -125,6 +125,7 @@ class FetchWorld(MujocoWorld):
     epsilon = 0.25  # per step, L1 over the 4 action components
     action_names = ("gripper dx", "gripper dy", "gripper dz", "fingers")
     effector = "robot0:gripper_link"  # the gripper and its two fingers, in the 3D view
+    demo_input = "effector"
 
     def __init__(self, env_id: str) -> None:
         self.env_id, self.task = env_id, TASKS[env_id]
@@ -226,3 +227,6 @@ class FetchWorld(MujocoWorld):
 
     def grip_pos(self, env) -> np.ndarray:
         return np.array(env.data.site("robot0:grip").xpos)
+
+    def effector_action(self, grip: np.ndarray, to: np.ndarray, close: bool) -> np.ndarray:
+        return X.move(to, grip, -1.0 if close else 1.0)

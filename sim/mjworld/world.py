@@ -168,6 +168,22 @@ class MujocoWorld(Benchmark):
     def grip_pos(self, env) -> np.ndarray:
         """float (3,): the gripper where the environment is now."""
 
+    def effector_action(self, grip: np.ndarray, to: np.ndarray, close: bool) -> np.ndarray:
+        """The action that moves the end effector from `grip` toward `to` (float (3,) each),
+        the fingers closed or open: what clicked waypoints are followed with (a world that
+        gives it declares demo_input "effector")."""
+        raise UserError(f"{self.name} takes no clicked waypoints")
+
+    def effector_waypoint(self, scene, u, v, last):
+        from sim.mjworld import clicks
+
+        return clicks.waypoint(self, scene, u, v, last)
+
+    def follow(self, task, waypoints):
+        from sim.mjworld import clicks
+
+        return clicks.follow(self, task, waypoints)
+
     def physics(self, env) -> tuple:
         """(mujoco.MjModel, mujoco.MjData) the environment steps (a gymnasium MujocoEnv's own
         by default)."""

@@ -21,7 +21,7 @@ RELEASE_M = 0.006  # this close above its resting place, the carried cube is let
 PLACING_M = 0.02  # this close above it (and over the other cube), it is being set down
 
 
-def _move(to: np.ndarray, eef: np.ndarray, gripper: float) -> np.ndarray:
+def move(to: np.ndarray, eef: np.ndarray, gripper: float) -> np.ndarray:
     a = np.zeros(7)
     a[:3] = GAIN * (to - eef)
     a[6] = gripper
@@ -32,16 +32,16 @@ def _pick(eef: np.ndarray, obj: np.ndarray) -> np.ndarray:
     """Over the object, down onto it (coming lower as it lines up), close on it."""
     d = obj - eef
     if np.linalg.norm(d) < GRASP_M:
-        return _move(obj, eef, 1.0)
+        return move(obj, eef, 1.0)
     hover = min(HOVER_M, 4.0 * float(np.linalg.norm(d[:2])))
-    return _move(obj + np.array([0.0, 0.0, hover]), eef, -1.0)
+    return move(obj + np.array([0.0, 0.0, hover]), eef, -1.0)
 
 
 def lift(eef: np.ndarray, objs: list[np.ndarray], held: bool, table_z: float) -> np.ndarray:
     """Pick the cube and raise it LIFT_M."""
     (cube,) = objs
     if held:
-        return _move(np.array([eef[0], eef[1], table_z + LIFT_M]), eef, 1.0)
+        return move(np.array([eef[0], eef[1], table_z + LIFT_M]), eef, 1.0)
     return _pick(eef, cube)
 
 
@@ -57,14 +57,14 @@ def stack(
         off = float(np.linalg.norm(a[:2] - b[:2]))
         if a[2] < rest[2] + PLACING_M and off < 2 * ALIGNED_M:  # setting it down
             if a[2] - rest[2] > RELEASE_M:
-                return _move(rest + offset, eef, 1.0)
-            return _move(eef, eef, -1.0)
+                return move(rest + offset, eef, 1.0)
+            return move(eef, eef, -1.0)
         if off > ALIGNED_M:  # over the table at carrying height
             carry = np.array([*b[:2], b[2] + rest_dz + CARRY_M])
             if a[2] < carry[2] - 0.02 and off > 0.02:
                 carry[:2] = a[:2]  # straight up first
-            return _move(carry + offset, eef, 1.0)
-        return _move(rest + offset, eef, 1.0)
+            return move(carry + offset, eef, 1.0)
+        return move(rest + offset, eef, 1.0)
     if np.linalg.norm(a - rest) < 0.01:  # resting on B: let go, then up
-        return _move(np.array([*eef[:2], rest[2] + CARRY_M]), eef, -1.0)
+        return move(np.array([*eef[:2], rest[2] + CARRY_M]), eef, -1.0)
     return _pick(eef, a)

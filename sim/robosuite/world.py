@@ -143,6 +143,7 @@ class RobosuiteWorld(MujocoWorld):
     cloning = Cloning(demonstrations=200, steps=6000, noise=0.15)
     action_names = ("eef dx", "eef dy", "eef dz", "eef dax", "eef day", "eef daz", "gripper")
     drawn_groups = (1, 2)  # robosuite's cameras draw visual geoms, not collision ones
+    demo_input = "effector"
 
     def __init__(self, env_name: str, *, robot: str = DEFAULT_ROBOT, camera: str = DEFAULT_CAMERA):
         self.env_name, self.robot, self.camera = env_name, robot, camera
@@ -248,6 +249,9 @@ class RobosuiteWorld(MujocoWorld):
     def grip_pos(self, env) -> np.ndarray:
         _, data = self.physics(env)
         return np.array(data.site_xpos[env.robots[0].eef_site_id[ARM]])
+
+    def effector_action(self, grip: np.ndarray, to: np.ndarray, close: bool) -> np.ndarray:
+        return X.move(to, grip, 1.0 if close else -1.0)
 
     # -- the expert ---------------------------------------------------------------------------
     def expert_action(self, task, scene) -> np.ndarray:

@@ -171,6 +171,20 @@ class PageWire:
         """Press the button labelled `label` once it is shown and enabled."""
         self.update(self.wait_enabled(label, timeout_s), value=True)
 
+    def click_scene(self, x: float, y: float) -> None:
+        """A click in the 3D view at the point (x, y) of its z = 0 plane, where the page's image
+        lies (what the browser sends: the ray through the clicked pixel, here straight down)."""
+        self.send(
+            {
+                "type": "ScenePointerMessage",
+                "event_type": "click",
+                "ray_origin": (float(x), float(y), 20.0),
+                "ray_direction": (0.0, 0.0, -1.0),
+                "screen_pos": ((0.5, 0.5),),
+                "modifier": None,
+            }
+        )
+
     def close(self) -> None:
         self.ws.close()
         self._reader.join(timeout=30)

@@ -182,3 +182,15 @@ def test_what_is_not_offered_is_one_line(name, said):
     with pytest.raises(UserError, match=said.replace("|", r"\|")) as e:
         sim.get_world(name)
     assert "\n" not in str(e.value)
+
+
+def test_one_click_on_the_cube_grasps_and_lifts_it(lift):
+    from clicked import click_on, drawn
+
+    task = lift.train_task(seed=0)
+    cube = lift.effector_waypoint(
+        task.scene, *click_on(lift, drawn(lift, task.scene, "cube"), 0), None
+    )
+    assert cube.grasp == "cube"
+    demo = lift.follow(task, [cube])
+    assert demo.success and demo.actions.shape == (lift.horizon, 7)
