@@ -9,6 +9,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional as F
 
 from policy.model import ImagePolicy, Policy, PolicyConfig
 from sim.core import Task, Trajectory, UserError, World
@@ -28,13 +29,18 @@ class TrainConfig:
     lr_schedule: str = "constant"
     """"constant", or "cosine": the rate falls along half a cosine to 0 at the last step (each
     DAgger round's fit its own)."""
+    shift_px: int = 0
+    """Random shifts of each drawn frame, up to this many pixels (shifted); 0: none."""
 
     def to_dict(self) -> dict:
-        """As a recipe holds it: without `lr_schedule` where it is constant, so that the
-        recipes of the policies trained before schedules were chosen read back the same."""
+        """As a recipe holds it: without `lr_schedule` where it is constant and `shift_px`
+        where it is 0, so that the recipes of the policies trained before either was chosen
+        read back the same."""
         doc = asdict(self)
         if self.lr_schedule == "constant":
             del doc["lr_schedule"]
+        if not self.shift_px:
+            del doc["shift_px"]
         return doc
 
 
@@ -119,7 +125,8 @@ def behaviour_clone(
             )
         else:
             idx = torch.from_numpy(gen.integers(0, n_new, size=min(config.batch_size, n_new)))
-        loss = loss_fn(net(x_all[idx]), y_all[idx])
+        x = shifted(x_all[idx], config.shift_px, gen) if config.shift_px else x_all[idx]
+        loss = loss_fn(net(x), y_all[idx])
         value = loss.item()
         if not math.isfinite(value):
             raise UserError(
@@ -135,6 +142,16 @@ def behaviour_clone(
         if on_loss is not None:
             on_loss(step, losses[-1])
     return (init.with_net(net) if init is not None else Policy(net)), losses
+
+
+def shifted(frames: torch.Tensor, pad: int, gen: np.random.Generator) -> torch.Tensor:
+    """uint8 (B, H, W, 3) -> the same frames, each moved by its own whole-pixel shift of at
+    most `pad` along each axis, its edge pixels repeated into the gap it leaves."""
+    b, h, w, _ = frames.shape
+    x = F.pad(frames.permute(0, 3, 1, 2).float(), (pad,) * 4, mode="replicate")
+    dy, dx = gen.integers(0, 2 * pad + 1, size=(2, b))  # (2, B) corners of the crops
+    out = torch.stack([x[i, :, dy[i] : dy[i] + h, dx[i] : dx[i] + w] for i in range(b)])
+    return out.permute(0, 2, 3, 1).to(torch.uint8)  # (B, H, W, 3)
 
 
 def learning_rate(config: TrainConfig, step: int) -> float:
@@ -269,6 +286,9 @@ def base_steps(world: World) -> int:
 
 
 def base_config(world: World) -> TrainConfig:
-    """The settings a world's base policy is cloned with: BASE with the world's steps and
-    learning-rate schedule."""
-    return replace(BASE, steps=world.cloning.steps, lr_schedule=world.cloning.lr_schedule)
+    """The settings a world's base policy is cloned with: BASE with the world's steps,
+    learning-rate schedule and frame shifts."""
+    cloning = world.cloning
+    return replace(
+        BASE, steps=cloning.steps, lr_schedule=cloning.lr_schedule, shift_px=cloning.shift_px
+    )

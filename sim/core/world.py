@@ -49,6 +49,10 @@ class Cloning:
     lr_schedule: str = "constant"
     """The learning rate over each fit's steps (policy.train.TrainConfig.lr_schedule):
     "constant" (the paper's worlds) or "cosine"."""
+    shift_px: int = 0
+    """Each training frame moved by up to this many pixels along each axis, a fresh shift every
+    time it is drawn (policy.train.shifted; Kostrikov et al. 2021's random shift): where things
+    are relative to each other matters, not where they fall on the frame. 0: frames as given."""
 
 
 @dataclass(frozen=True)
