@@ -81,11 +81,11 @@ def waypoint(world, scene: Scene, u: float, v: float, last: Waypoint | None) -> 
         if far < 0:
             return None
         hit = origin + far * d
-        slot = _slot_of(world, model, int(model.geom_bodyid[geom[0]]))
+        body = int(model.geom_bodyid[geom[0]])
+        slot = _slot_of(world, model, body)
     if slot is not None and slot.moves:
         return Waypoint(tuple(round(float(c), 4) for c in scene.obj(slot.name).pos[:3]),
                         grasp=slot.name, on=f"the {slot.name}", ray=ray)  # fmt: skip
-    body = int(model.geom_bodyid[geom[0]])
     on = f"the {slot.name}" if slot is not None else "the floor" if body == 0 else "the robot"
     return Waypoint((round(float(hit[0]), 4), round(float(hit[1]), 4),
                      round(float(hit[2] + ABOVE_M), 4)), on=on, ray=ray)  # fmt: skip
