@@ -66,14 +66,15 @@ class AdaptConfig:
     finetuning: Annotated[Finetuning, tyro.conf.OmitArgPrefixes] = field(default_factory=Finetuning)
     """How it finetunes and scores."""
 
-    def train_config(self, seed: int):
+    def train_config(self, seed: int, shift_px: int = 0):
         """The finetuning settings (policy.train.TrainConfig) of a run with this budget and
-        seed: max(steps, steps_per_trajectory x budget) steps."""
+        seed: max(steps, steps_per_trajectory x budget) steps, frames shifted by up to
+        `shift_px` (a world's finetuning shifts them as its base was cloned)."""
         from policy.train import FINETUNE, TrainConfig
 
         f = self.finetuning
         steps = max(f.steps, f.steps_per_trajectory * self.budget)
-        return TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, seed)
+        return TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, seed, shift_px=shift_px)
 
     @classmethod
     def from_dict(cls, d: dict) -> AdaptConfig:

@@ -27,7 +27,7 @@ from typing import Any
 
 from dfa_viz.configs import AdaptConfig
 from dfa_viz.users import User
-from policy import Policy, finetune, training_demos
+from policy import Policy, finetune, replayed, training_demos
 from policy.evaluate import N_EVAL, Freshness, Score, freshness, score
 from policy.heldout import plan
 from policy.variants import fill_budget, from_feedback, render, sources, variants
@@ -288,8 +288,8 @@ def adapt(
         world,
         base,
         fill_budget(demo, augmented, config.budget),
-        config=config.train_config(seed),
-        replay=known if config.finetuning.replay_share > 0 else (),
+        config=config.train_config(seed, world.cloning.shift_px),
+        replay=replayed(world, base, known) if config.finetuning.replay_share > 0 else (),
         replay_share=config.finetuning.replay_share,
         on_loss=on_loss,
     )

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from policy.evaluate import Score, failing_test_task, score
     from policy.loaders import register_policy_loader
     from policy.model import ImagePolicy, Policy, PolicyConfig
-    from policy.train import TrainConfig, behaviour_clone, finetune, training_demos
+    from policy.train import TrainConfig, behaviour_clone, finetune, replayed, training_demos
     from policy.variants import augment
 
 _WHERE = {
@@ -33,6 +33,7 @@ _WHERE = {
     "TrainConfig": "policy.train",
     "behaviour_clone": "policy.train",
     "finetune": "policy.train",
+    "replayed": "policy.train",
     "training_demos": "policy.train",
     "augment": "policy.variants",
 }
@@ -50,6 +51,7 @@ __all__ = [
     "finetune",
     "load_policy",
     "register_policy_loader",
+    "replayed",
     "save_policy",
     "score",
     "training_demos",

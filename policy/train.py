@@ -48,6 +48,7 @@ BASE = TrainConfig()
 FINETUNE = TrainConfig(steps=300, lr=5e-4)
 DEMOS_KEPT = 4  # worlds whose training demonstrations a process keeps (training_demos)
 _DEMOS: dict[tuple[int, int], tuple[World, tuple[Trajectory, ...]]] = {}  # (id, seed) -> kept
+_ROLLOUTS: dict[tuple[int, int], tuple[World, Policy, tuple[Trajectory, ...]]] = {}  # replayed
 
 # loss per step -> None; the recorder and the page draw the curve from these
 LossCallback = Callable[[int, float], None]
@@ -252,6 +253,27 @@ def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
         while len(_DEMOS) > DEMOS_KEPT:
             del _DEMOS[next(iter(_DEMOS))]
     return list(_DEMOS[key][1])
+
+
+def replayed(world: World, base: Policy, demos: Sequence[Trajectory]) -> list[Trajectory]:
+    """What finetuning `base` replays so that it keeps what it did elsewhere: the training
+    demonstrations `demos` and, where the world clones with DAgger (a base fitted on its own
+    states too), the base's rollouts on the training tasks, every scene labelled by the expert.
+    Replaying the demonstrations alone pulls such a base back toward its first clone. The
+    rollouts are made once per base policy for the last few asked."""
+    if not world.cloning.dagger_rounds:
+        return list(demos)
+    key = (id(world), id(base))  # both kept beside the rollouts: no other object takes an id
+    if key not in _ROLLOUTS:
+        tasks = training_tasks(world)
+        visited = world.rollout_batch(tasks, base)
+        relabelled = tuple(
+            expert_relabelled(world, t, v) for t, v in zip(tasks, visited, strict=True)
+        )
+        _ROLLOUTS[key] = (world, base, relabelled)
+        while len(_ROLLOUTS) > DEMOS_KEPT:
+            del _ROLLOUTS[next(iter(_ROLLOUTS))]
+    return [*demos, *_ROLLOUTS[key][2]]
 
 
 def clone_base(

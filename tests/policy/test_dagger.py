@@ -14,7 +14,9 @@ from policy.train import (
     behaviour_clone,
     dagger,
     expert_relabelled,
+    replayed,
     training_demos,
+    training_tasks,
 )
 from sim.core import Cloning
 
@@ -63,3 +65,21 @@ def test_the_recipe_names_dagger_rounds_only_where_a_world_asks_for_them(nav):
     )
     assert recipe(asking(), demos, seed=0, config=QUICK)["dagger_rounds"] == 2
     assert Cloning().dagger_rounds == 0
+
+
+def test_finetuning_replays_a_dagger_base_on_its_own_states_labelled_by_the_expert(nav, nav_policy):
+    demos = training_demos(nav)
+    assert replayed(nav, nav_policy, demos) == demos  # plain cloning: the demonstrations alone
+    asking = type(
+        "Asking", (type(nav),), {"cloning": dataclasses.replace(nav.cloning, dagger_rounds=1)}
+    )()
+    data = replayed(asking, nav_policy, demos)
+    tasks = training_tasks(asking)
+    assert data[: len(demos)] == demos and len(data) == len(demos) + len(tasks)
+    visited = asking.rollout_batch(tasks, nav_policy)
+    for task, rollout, labelled in zip(tasks, visited, data[len(demos) :], strict=True):
+        assert labelled.scenes == rollout.scenes
+        want = [asking.expert_action(task, s) for s in rollout.scenes[:-1]]
+        assert np.array_equal(labelled.actions, np.stack(want))
+    again = replayed(asking, nav_policy, demos)
+    assert all(a is b for a, b in zip(again, data, strict=True))  # rolled out once
