@@ -34,6 +34,10 @@ class Finetuning:
     """What variants are made from: "all" (the base policy's training demonstrations and the
     user's, edited to values the user accepts) or "user" (the user's demonstration only, as in
     the paper)."""
+    looks: Literal["test", "spread"] = "test"
+    """The looks variants take first on each layout: "test", the test task's own (what the
+    user saw go wrong); "spread", each TI look's accepted values in turn over the layouts, so
+    that a budget shows many of them (spread_looks in policy.variants)."""
     n_eval: int = 10
     """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
     paper's 10)."""
@@ -53,6 +57,8 @@ class Finetuning:
             )
         if self.sources not in ("all", "user"):
             raise UserError(f"--sources is all or user, not {self.sources!r}")
+        if self.looks not in ("test", "spread"):
+            raise UserError(f"--looks is test or spread, not {self.looks!r}")
         return self
 
 

@@ -30,7 +30,7 @@ from dfa_viz.users import User
 from policy import Policy, finetune, replayed, training_demos
 from policy.evaluate import N_EVAL, Freshness, Score, freshness, score
 from policy.heldout import plan
-from policy.variants import fill_budget, from_feedback, render, sources, variants
+from policy.variants import fill_budget, from_feedback, render, sources, spread_looks, variants
 from search import SearchConfig, SearchResult, counterfactual_search
 from sim.core import EMPTY, Edit, Feedback, Label, Task, Trajectory, World, require_success
 
@@ -260,7 +260,8 @@ def augmentation(
         holdout = plan(world, task, seed)
         known, what = holdout.sources(world, known), holdout.restrict(what)
     srcs = sources(task, demo, known if config.finetuning.sources == "all" else ())
-    chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=task.scene)
+    like = task.scene if config.finetuning.looks == "test" else spread_looks(task.scene, what)
+    chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=like)
     return render(world, srcs, chosen)
 
 

@@ -274,6 +274,26 @@ def variant_stream(
         yield ops
 
 
+def spread_looks(scene: Scene, what: Irrelevant) -> list[Scene]:
+    """Scenes that go through the looks `what` allows, `scene`'s own first: the j-th gives each
+    look concept it covers (not presence) the j-th of its allowed values counted on from the
+    scene's own, for as many scenes as the concept with the most values has values. Given to
+    `variants` as `like`, they spread a budget over the looks instead of repeating one."""
+    looks = []
+    for slot, concept, values in what.members:
+        allowed = [v for v in values if concept != PRESENCE and what.allows(slot, concept, v)]
+        if allowed:
+            now = scene.obj(slot).value(concept)
+            first = allowed.index(now) if now in allowed else 0
+            looks.append((slot, concept, allowed[first:] + allowed[:first]))
+    out = []
+    for j in range(max((len(v) for _, _, v in looks), default=1)):
+        for slot, concept, allowed in looks:
+            scene = scene.with_obj(scene.obj(slot).with_value(concept, allowed[j % len(allowed)]))
+        out.append(scene)
+    return out
+
+
 def variants(
     world: World,
     srcs: Sequence[Source],
@@ -281,12 +301,13 @@ def variants(
     n: int,
     *,
     seed: int,
-    like: Scene,
+    like: Scene | Sequence[Scene],
     n_concepts: int = 1,
 ) -> list[tuple[int, Variant]]:
     """n variants as (source index, ops): the i-th over pick(i), from the next source in turn
     that still has a new variant of it (each (source, concept) has its own seeded stream,
-    closest to `like`, the test task's scene, first).
+    closest to `like`, the test task's scene, first; several scenes: source k's stream closest
+    to the k-th, cycled, as `spread_looks` gives them).
     Fewer when the concepts run out: a concept found in no source is dropped, and the walk
     ends once all `n_concepts` concepts have been dropped."""
     streams: dict[tuple[int, str], Iterator[Variant]] = {}
@@ -294,6 +315,7 @@ def variants(
     # concept changed), so all streams share one seen-set: a variant is new only if no
     # source and no earlier variant of any stream has its scene
     seen = {src.task.scene for src in srcs}
+    likes = [like] if isinstance(like, Scene) else list(like)
 
     def stream(k: int, what: Irrelevant) -> Iterator[Variant]:
         key = (k, what.name)
@@ -305,7 +327,9 @@ def variants(
             streams[key] = (
                 iter(())
                 if part is None
-                else variant_stream(world, src, part, rng=rng, seen=seen, like=like)
+                else variant_stream(
+                    world, src, part, rng=rng, seen=seen, like=likes[k % len(likes)]
+                )
             )
         return streams[key]
 

@@ -137,6 +137,32 @@ def test_the_first_variants_look_like_the_test_task(nav, nav_policy, known):
     assert all(d.present and d.values == look for d in added)
 
 
+def test_spread_looks_go_through_the_accepted_values_over_the_layouts(nav, nav_policy, known):
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    slot, concept = task.cause
+    what = A.over(nav, task, nav.space.user_concept(slot, concept))
+    accepted = dict(((s, c), v) for s, c, v in what.members)[slot, concept]
+    likes = A.spread_looks(task.scene, what)
+    own = task.scene.obj(slot).value(concept)
+    assert likes[0] == task.scene and len(likes) == len(accepted) > 2
+    assert sorted(s.obj(slot).value(concept) for s in likes) == sorted(accepted)
+    srcs = A.sources(task, nav.demonstrate(task), known)
+    n = len(accepted) * 2
+    test_first = A.variants(nav, srcs, lambda i: what, n, seed=0, like=task.scene)
+    spread = A.variants(nav, srcs, lambda i: what, n, seed=0, like=likes)
+
+    def shown(chosen):
+        return [transform(srcs[k].task.scene, ops).obj(slot).value(concept) for k, ops in chosen]
+
+    assert set(shown(test_first)) == {own}  # every layout first in the test task's look
+    trained = known[0].scenes[0].obj(slot).value(concept)  # the training demonstrations show it
+    assert set(shown(spread)) | {trained} == set(accepted)  # every other accepted look shown
+    held = A.Irrelevant(what.name, what.members, held=((slot, concept, (accepted[-1],)),))
+    assert accepted[-1] not in {
+        s.obj(slot).value(concept) for s in A.spread_looks(task.scene, held)
+    }
+
+
 def test_a_block_is_added_to_a_fetch_scene_whose_table_shares_the_targets_place():
     world = get_world("fetch:FetchPickAndPlace-v4")
     task = world.test_task("distractor_ti", 0)
