@@ -62,8 +62,8 @@ demo: setup
 # The whole suite twice: torch on one thread, then on two (tests/conftest.py reads DFA_TORCH_THREADS).
 # Each run goes to its end, so that one failure hides no other; the target fails if either failed.
 test: setup
-	one=0; DFA_TORCH_THREADS=1 $(PY) -m pytest -q || one=$$?; \
-	two=0; DFA_TORCH_THREADS=2 $(PY) -m pytest -q || two=$$?; \
+	one=0; DFA_TORCH_THREADS=1 $(PY) -m pytest -q --durations=25 || one=$$?; \
+	two=0; DFA_TORCH_THREADS=2 $(PY) -m pytest -q --durations=25 || two=$$?; \
 	echo "make test: exit $$one with torch on one thread, $$two on two"; \
 	[ $$one -eq 0 ] && [ $$two -eq 0 ]
 
