@@ -264,7 +264,10 @@ class LoopState(RunState):
                 self.jobs.progress(0.9 * (step + 1) / steps, text)
                 self._notify({"losses"})
 
-        self.jobs.progress(0.0, f"making up to {config.budget - 1} variants of the demonstration")
+        making = f"making up to {config.budget - 1} variants of the demonstration"
+        if world.cloning.dagger_rounds and config.finetuning.replay_share > 0:  # policy.replayed
+            making = f"rolling the base policy out on its training tasks to replay, {making}"
+        self.jobs.progress(0.0, making)
         base = self.policies.get(world)
         adaptation, evaluation = adapt_and_evaluate(
             world,
