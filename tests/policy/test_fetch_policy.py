@@ -13,7 +13,7 @@ from policy.train import base_arch, base_config
 
 PICK = "fetch:FetchPickAndPlace-v4"
 HELD_OUT = range(1000, 1010)  # training-distribution tasks no demonstration was drawn from
-AT_LEAST = 5  # of 10: 8 measured (AMD EPYC); a margin for another processor's closed loop
+AT_LEAST = 7  # of 10: 10 measured (AMD EPYC); a margin for another processor's closed loop
 
 
 def test_the_committed_pick_and_place_policy_has_todays_recipe_and_solves_held_out_tasks():
