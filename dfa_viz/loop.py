@@ -251,8 +251,8 @@ def augmentation(
     seed: int,
     held_out: bool = True,
 ) -> list[Trajectory]:
-    """Up to budget - 1 variants over the TI labels from the config's sources, none on the
-    layouts or values the evaluation holds out (policy.heldout.plan; held_out=False: all)."""
+    """Up to budget - 1 variants over the TI labels from the config's sources, none on what the
+    evaluation holds out (policy.heldout.plan; held_out=False: all); first in config's looks."""
     what = from_feedback(world, feedback)
     if what is None:
         return []
@@ -281,8 +281,7 @@ def adapt(
     """Finetune a copy of `base` on exactly `config.budget` trajectories: the demonstration and
     its variants over the TI labels (or the `augmented` trajectories given), with the base
     policy's training demonstrations (`known`, made here when None) replayed in every batch."""
-    if known is None:  # the base policy's training demonstrations, where the world has them
-        known = training_demos(world) if world.benchmark else ()
+    known = (training_demos(world) if world.benchmark else ()) if known is None else known
     if augmented is None:
         augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
     tuned, losses = finetune(

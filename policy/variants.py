@@ -275,16 +275,13 @@ def variant_stream(
 
 
 def spread_looks(scene: Scene, what: Irrelevant) -> list[Scene]:
-    """Scenes that go through the looks `what` allows, `scene`'s own first: the j-th gives each
-    look concept it covers (not presence) the j-th of its allowed values counted on from the
-    scene's own, for as many scenes as the concept with the most values has values. Given to
-    `variants` as `like`, they spread a budget over the looks instead of repeating one."""
+    """`variants`' like that spreads a budget over the looks `what` allows: the j-th scene gives
+    each look concept (not presence) its j-th allowed value counted on from `scene`'s own."""
     looks = []
     for slot, concept, values in what.members:
         allowed = [v for v in values if concept != PRESENCE and what.allows(slot, concept, v)]
         if allowed:
-            now = scene.obj(slot).value(concept)
-            first = allowed.index(now) if now in allowed else 0
+            first = allowed.index(now) if (now := scene.obj(slot).value(concept)) in allowed else 0
             looks.append((slot, concept, allowed[first:] + allowed[:first]))
     out = []
     for j in range(max((len(v) for _, _, v in looks), default=1)):
@@ -306,8 +303,7 @@ def variants(
 ) -> list[tuple[int, Variant]]:
     """n variants as (source index, ops): the i-th over pick(i), from the next source in turn
     that still has a new variant of it (each (source, concept) has its own seeded stream,
-    closest to `like`, the test task's scene, first; several scenes: source k's stream closest
-    to the k-th, cycled, as `spread_looks` gives them).
+    closest to `like`, the test task's scene, first; or source k's to the k-th of several).
     Fewer when the concepts run out: a concept found in no source is dropped, and the walk
     ends once all `n_concepts` concepts have been dropped."""
     streams: dict[tuple[int, str], Iterator[Variant]] = {}
