@@ -25,6 +25,9 @@ from sim.core import Scene, Task, Trajectory, UserError, World
 N_EVAL = 10  # the paper's number of evaluation tasks
 LAYOUTS = "train"  # fresh tasks put the objects as a random training layout does
 POOL = 8  # candidates drawn per fresh task (and per held-out value) to find fresh ones in
+FRESH_KEPT = 8  # test tasks whose fresh tasks a process keeps: a run scores two policies on
+# them and reports their freshness, and a MiniGrid world plans each candidate to draw them
+_FRESH: dict[tuple, tuple[World, list[Task], list[Task]]] = {}
 
 
 @dataclass(frozen=True)
@@ -77,11 +80,16 @@ def fresh(
     layouts and, on the shift, the values `holdout` (default: heldout.plan) keeps from
     finetuning."""
     holdout = holdout or plan(world, task, seed)
-    m = POOL * n
-    shown = holdout.shown(task)
-    shifted = [world.fresh_tasks(t, m, seed, layouts=LAYOUTS, shifted=True) for t in shown]
-    overall = [world.fresh_tasks(task, m * len(shown), seed, layouts=LAYOUTS)]
-    return _pick(world, holdout, shifted, n), _pick(world, holdout, overall, n)
+    key = (id(world), task, n, seed, holdout)  # the world is kept beside: no other takes its id
+    if key not in _FRESH:
+        m = POOL * n
+        shown = holdout.shown(task)
+        shifted = [world.fresh_tasks(t, m, seed, layouts=LAYOUTS, shifted=True) for t in shown]
+        overall = [world.fresh_tasks(task, m * len(shown), seed, layouts=LAYOUTS)]
+        _FRESH[key] = (world, _pick(world, holdout, shifted, n), _pick(world, holdout, overall, n))
+        while len(_FRESH) > FRESH_KEPT:
+            del _FRESH[next(iter(_FRESH))]
+    return list(_FRESH[key][1]), list(_FRESH[key][2])
 
 
 @dataclass(frozen=True)

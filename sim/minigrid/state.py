@@ -109,6 +109,13 @@ def sequenced(env, seeds) -> bool:
     return False
 
 
+def _unobserved() -> dict:
+    """What a layout's environment gives as the observation of a step: nothing. MiniGrid's
+    step ends by drawing the agent's view (gen_obs: most of a step's time, and the expert's
+    plans take thousands of steps), and no scene is read from it; frames are drawn apart."""
+    return {}
+
+
 class Layouts:
     """One environment per layout seed, with its objects as the slots of the concept space."""
 
@@ -126,6 +133,7 @@ class Layouts:
                 return self._envs[layout]
             env = self.make_env()
             reset(env, layout)
+            env.gen_obs = _unobserved  # its steps are read for their state (Layouts.read) only
             objs: dict[str, WorldObj] = {}
             seen: dict[str, int] = {}
             for j in range(env.height):  # row-major: the slots' order on every layout
