@@ -42,6 +42,12 @@ class Finetuning:
     """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
     paper's 10)."""
 
+    @property
+    def uses_training_demos(self) -> bool:
+        """Whether it reads the base policy's training demonstrations (as variant sources, or
+        replayed): a MuJoCo world makes them in minutes, so they are made only then."""
+        return self.sources == "all" or self.replay_share > 0
+
     def check(self) -> Finetuning:
         """Raise a UserError for a setting out of range; returns self."""
         for name, value in (

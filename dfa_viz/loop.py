@@ -279,9 +279,10 @@ def adapt(
     on_loss: LossCallback | None = None,
 ) -> Adaptation:
     """Finetune a copy of `base` on exactly `config.budget` trajectories: the demonstration and
-    its variants over the TI labels (or the `augmented` trajectories given), with the base
-    policy's training demonstrations (`known`, made here when None) replayed in every batch."""
-    known = (training_demos(world) if world.benchmark else ()) if known is None else known
+    its variants over the TI labels (or the `augmented` given), with the base policy's training
+    demonstrations (`known`, made here when None and read) replayed in every batch."""
+    reads = world.benchmark and config.finetuning.uses_training_demos
+    known = (training_demos(world) if reads else ()) if known is None else known
     if augmented is None:
         augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
     tuned, losses = finetune(

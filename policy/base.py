@@ -12,7 +12,8 @@ repository, with the recipe they were trained from in their config.json:
     trained_on  the machine, torch's version, the date, the final loss, the training success
 
 `base_policy(world)` loads the committed weights once it has checked that today's recipe is the
-one they were trained with. A changed recipe with stale weights is an error that names the
+one they were trained with (every training task's expert run, the frames of a few of them:
+`checked_recipe`). A changed recipe with stale weights is an error that names the
 command to retrain, never a silent retrain. Worlds without committed weights (and seeds other
 than 0) are trained on first use and cached under `files.cache_dir()` instead.
 """
@@ -47,6 +48,7 @@ from sim.core import Trajectory, UserError, World, files
 WEIGHTS = Path(__file__).parent / "weights"
 RECORD_SEED = 0  # the seed whose base policies are committed
 FRAME_TOLERANCE = 0.5  # mean frame colours may differ this much (of 255) between renderers
+FRAMES_CHECKED = 10  # training demonstrations drawn to check a committed policy's frames
 
 
 def machine_name() -> str:
@@ -69,19 +71,46 @@ def _sha(text: str) -> str:
 
 def recipe(world: World, demos: list[Trajectory], *, seed: int, config: TrainConfig) -> dict:
     """What a base policy is trained from, in terms that are the same on every processor."""
+    colours = [_mean_colour(d.observations) for d in demos]
+    runs = [(list(d.scenes), d.actions) for d in demos]
+    return _recipe(world, runs, colours, seed=seed, config=config)
+
+
+def checked_recipe(world: World, *, seed: int, config: TrainConfig) -> dict:
+    """Today's recipe as a committed policy's is checked against, without drawing every
+    training demonstration: each training task's expert run (its scenes and actions, the
+    physics alone) and the frames of FRAMES_CHECKED runs spread over them; the others' frame
+    colours are None and not compared (a changed renderer or camera changes every run's
+    frames). A 200-demonstration MuJoCo world is checked in seconds instead of minutes."""
+    tasks = training_tasks(world, seed)
+    noise = world.cloning.noise
+    runs = [world.expert_run(t, noise=noise, seed=t.seed) for t in tasks]
+    drawn = set(np.linspace(0, len(runs) - 1, min(len(runs), FRAMES_CHECKED)).round().astype(int))
+    colours = [
+        _mean_colour(world.render_batch(scenes)) if i in drawn else None
+        for i, (scenes, _) in enumerate(runs)
+    ]
+    return _recipe(world, runs, colours, seed=seed, config=config)
+
+
+def _mean_colour(frames: np.ndarray) -> list[float]:
+    """The mean RGB of uint8 frames (T, H, W, 3), rounded."""
+    return [round(float(c), 3) for c in frames.reshape(-1, 3).mean(axis=0)]
+
+
+def _recipe(world: World, runs: list, colours: list, *, seed: int, config: TrainConfig) -> dict:
+    """runs: each demonstration's (scenes, actions); colours: each one's mean frame colour."""
     arch = base_arch(world)
-    actions = [np.round(d.actions.astype(np.float64), 4).tolist() for d in demos]
+    actions = [np.round(np.asarray(a, np.float64), 4).tolist() for _, a in runs]
     doc = {
         "world": world.name,
         "seed": seed,
         "train": config.to_dict(),
         "policy": arch.to_dict(),
-        "demonstrations": len(demos),
-        "initial_scenes": _sha(json.dumps([d.scenes[0].to_dict() for d in demos])),
+        "demonstrations": len(runs),
+        "initial_scenes": _sha(json.dumps([scenes[0].to_dict() for scenes, _ in runs])),
         "actions": _sha(json.dumps(actions)),
-        "frame_colours": [
-            [round(float(c), 3) for c in d.observations.reshape(-1, 3).mean(axis=0)] for d in demos
-        ],
+        "frame_colours": colours,
     }
     if world.cloning.dagger_rounds:  # only where asked: the other worlds' recipes stay as they were
         doc["dagger_rounds"] = world.cloning.dagger_rounds
@@ -94,7 +123,7 @@ def recipe_change(then: dict, now: dict) -> str | None:
         a, b = then.get(key), now.get(key)
         if key == "frame_colours" and isinstance(a, list) and isinstance(b, list):
             same = len(a) == len(b) and all(
-                np.abs(np.subtract(x, y)).max() <= FRAME_TOLERANCE
+                y is None or np.abs(np.subtract(x, y)).max() <= FRAME_TOLERANCE
                 for x, y in zip(a, b, strict=True)
             )
             if not same:
@@ -149,13 +178,11 @@ def base_policy(
     writes it where it is kept (policy/weights/<world>/ for the policies of record).
     `config`: the cloning settings (default: the world's, policy.train.base_config)."""
     config = config or base_config(world)
-    demos = training_demos(world, seed)
-    now = recipe(world, demos, seed=seed, config=config)
     record = of_record(world, seed, config)
-    folder = record_folder(world) if record else _cached(now)
-    if record and not retrain and (folder / "config.json").is_file():
+    if record and not retrain and (record_folder(world) / "config.json").is_file():
+        folder = record_folder(world)
         then = read_config(folder).get("meta", {}).get("recipe", {})
-        change = recipe_change(then, now)
+        change = recipe_change(then, checked_recipe(world, seed=seed, config=config))
         if change is not None:
             first = ""
             if change.startswith("the training frames look different"):
@@ -170,6 +197,9 @@ def base_policy(
                 f"--worlds {world.name}` and commit {folder}"
             )
         return load_policy(folder, world=world)
+    demos = training_demos(world, seed)
+    now = recipe(world, demos, seed=seed, config=config)
+    folder = record_folder(world) if record else _cached(now)
     if not retrain and (folder / "model.safetensors").is_file():
         try:
             return load_policy(folder, world=world)

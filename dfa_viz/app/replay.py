@@ -154,7 +154,8 @@ def _adaptation(
     assert rec.demo is not None  # the feedback stages come after the demonstration
     augmented: tuple[Trajectory, ...] = ()
     if event.config is not None:
-        known = training_demos(world) if world.benchmark else ()
+        sourced = world.benchmark and event.config.finetuning.sources == "all"
+        known = training_demos(world) if sourced else ()
         augmented = tuple(
             augmentation(
                 world,

@@ -274,7 +274,7 @@ class LoopState(RunState):
             base,
             rec,
             config=config,
-            known=self.policies.known(world),
+            known=self.policies.known(world) if config.finetuning.uses_training_demos else (),
             on_loss=on_loss,
             on_scoring=lambda: self.jobs.progress(0.92, "scoring both policies on fresh tasks"),
         )

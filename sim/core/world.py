@@ -349,9 +349,18 @@ class Benchmark(World):
         """The scripted demonstrator's action in `scene`: float32 (A,) or int64 scalar."""
 
     def demonstrate(self, task: Task, *, noise: float = 0.0, seed: int = 0) -> Trajectory:
-        """The scripted expert's closed-loop demonstration of `task`. With `noise`, each step
-        executes the expert's action plus Gaussian noise of that standard deviation (seeded,
-        clipped to [-1, 1]) and records the expert's own action (continuous worlds)."""
+        """The scripted expert's closed-loop demonstration of `task` (expert_run), drawn."""
+        scenes, actions = self.expert_run(task, noise=noise, seed=seed)
+        obs = self.render_batch(scenes)  # (T+1, H, W, 3)
+        return Trajectory(tuple(scenes), obs, actions, self.success(task, scenes))
+
+    def expert_run(
+        self, task: Task, *, noise: float = 0.0, seed: int = 0
+    ) -> tuple[list[Scene], np.ndarray]:
+        """The scenes (T+1) and the expert's actions (T, A) | (T,) of its closed-loop run of
+        `task`, without frames. With `noise`, each step executes the expert's action plus
+        Gaussian noise of that standard deviation (seeded, clipped to [-1, 1]) and records the
+        expert's own action (continuous worlds)."""
         rng = np.random.default_rng([seed, 11])
         scenes, actions = [task.scene], []
         for _ in range(self.horizon):
@@ -361,5 +370,4 @@ class Benchmark(World):
                 done = np.clip(a + rng.normal(0.0, noise, a.shape), -1.0, 1.0).astype(a.dtype)
             scenes.append(self.step_batch([scenes[-1]], done[None])[0])
             actions.append(a)
-        obs = self.render_batch(scenes)  # (T+1, H, W, 3)
-        return Trajectory(tuple(scenes), obs, np.stack(actions), self.success(task, scenes))
+        return scenes, np.stack(actions)

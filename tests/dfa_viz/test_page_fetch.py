@@ -17,9 +17,12 @@ from dfa_viz.app.page import FINETUNE, USE_DEMO
 from dfa_viz.configs import AdaptConfig, Finetuning
 
 FETCH = "fetch:FetchPickAndPlace-v4"
-# no replay: the page's flow, without the base policy's 200 relabelled rollouts (minutes; the
-# replay itself is tested in tests/policy/test_dagger.py)
-QUICK = AdaptConfig(budget=3, finetuning=Finetuning(steps=10, replay_share=0.0, n_eval=2))
+# variants of the user's demonstration, no replay: the page's flow, without the base policy's
+# 200 training demonstrations and relabelled rollouts (minutes; the replay itself is tested in
+# tests/policy/test_dagger.py)
+QUICK = AdaptConfig(
+    budget=3, finetuning=Finetuning(steps=10, replay_share=0.0, sources="user", n_eval=2)
+)
 
 
 @pytest.fixture

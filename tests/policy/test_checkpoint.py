@@ -3,6 +3,7 @@ before anything is built; the committed base policies of record load and match t
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -13,6 +14,7 @@ from safetensors.torch import load_file, save_file
 from policy import base as B
 from policy import load_policy, save_policy
 from policy.model import ImagePolicy, Policy, PolicyConfig
+from policy.train import training_demos
 from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
@@ -226,3 +228,34 @@ def test_weights_without_the_policy_they_were_finetuned_from_are_one_line(capsys
     assert main(["run", "--weights", str(tmp_path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "finetuned weights go with the --policy" in err[0], err
+
+
+def test_a_committed_policy_is_checked_on_every_expert_run_and_a_few_runs_frames(nav):
+    """checked_recipe is the recipe of the training demonstrations, every run's scenes and
+    actions, with the frame colours of FRAMES_CHECKED runs spread over them (the first among
+    them) and None for the rest, which are never drawn."""
+    many = dataclasses.replace(nav.cloning, demonstrations=B.FRAMES_CHECKED * 2 + 3)
+
+    class Counting(type(nav)):
+        cloning = many
+        frames_drawn = 0
+
+        def render_batch(self, scenes):
+            self.frames_drawn += 1
+            return super().render_batch(scenes)
+
+    world = Counting()
+    config = B.base_config(world)
+    full = B.recipe(world, training_demos(world), seed=0, config=config)
+    world.frames_drawn = 0
+    checked = B.checked_recipe(world, seed=0, config=config)
+    assert world.frames_drawn == B.FRAMES_CHECKED  # one batch per run drawn
+    colours = checked.pop("frame_colours")
+    assert checked == {k: v for k, v in full.items() if k != "frame_colours"}
+    assert colours[0] is not None and colours[-1] is not None
+    assert sum(c is not None for c in colours) == B.FRAMES_CHECKED
+    assert all(c is None or c == f for c, f in zip(colours, full["frame_colours"], strict=True))
+    assert B.recipe_change(full, {**checked, "frame_colours": colours}) is None
+    assert B.checked_recipe(nav, seed=0, config=B.base_config(nav)) == B.recipe(
+        nav, training_demos(nav), seed=0, config=B.base_config(nav)
+    )  # ten demonstrations: every one drawn
