@@ -9,8 +9,7 @@ one record of a run that each step returns a new copy of.
     adapt         variants over the TI concepts, a finetuned copy          -> Adaptation
     evaluate      both policies on fresh tasks, on the shift and overall   -> Evaluation
 
-(`adapt_and_evaluate` is the last two as one step; `diagnosed` and `adapted` put a step's
-result into the record.)
+(`adapt_and_evaluate`: the last two as one step; `diagnosed`, `adapted`: a result recorded.)
 
 `dfa run` (run_loop below), the page (dfa_viz.app.state) and the finetuning experiment's
 runner (dfa_viz.experiment.runner) compose these steps; none re-implements one. The recorder
