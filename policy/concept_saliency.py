@@ -81,7 +81,7 @@ class Ranking:
 
 def prepare(world: World, task: Task, rollout: Trajectory, demo: Trajectory) -> Frames:
     """Frames of a failed rollout of `task` explained against `demo`: masks and labels."""
-    steps = explained_steps(rollout, demo)
+    steps = explained_steps(world, rollout, demo)
     scenes = list(rollout.scenes[:steps])
     concepts = visible_concepts(world.space, task.scene)
     groups = tuple(shown_slots(uc, task.scene) for uc in concepts)
@@ -107,7 +107,7 @@ def before_divergence(world: World, rollout: Trajectory, demo: Trajectory) -> in
     """The leading explained steps whose rollout frame is the demonstration's (at least 1: both
     start from the task's scene): equal frames in a discrete world, frames that differ in at
     most DIVERGED of their pixels in a continuous one."""
-    steps = explained_steps(rollout, demo)
+    steps = explained_steps(world, rollout, demo)
     for t in range(1, steps):
         differ = np.any(rollout.observations[t] != demo.observations[t], axis=-1)  # (H, W)
         if differ.any() if world.discrete else differ.mean() > DIVERGED:

@@ -59,9 +59,16 @@ class SaliencyConfig:
     """Frames per forward pass inside the methods."""
 
 
-def explained_steps(rollout: Trajectory, demo: Trajectory) -> int:
-    """The steps of a rollout that have a demonstrated action to explain against."""
-    return min(rollout.horizon, demo.horizon)
+def live_steps(world: World, traj: Trajectory) -> int:
+    """The steps a trajectory took before its episode ended (`world.done`): a rollout runs to
+    the horizon, and once an episode ends its steps repeat the last frame and action."""
+    return next((t for t, s in enumerate(traj.scenes) if world.done(s)), traj.horizon)
+
+
+def explained_steps(world: World, rollout: Trajectory, demo: Trajectory) -> int:
+    """The steps of a rollout that have a demonstrated action to explain against: those before
+    either episode ended (at least the first)."""
+    return max(1, min(live_steps(world, rollout), live_steps(world, demo)))
 
 
 def saliency_maps(
@@ -75,11 +82,11 @@ def saliency_maps(
     config: SaliencyConfig = SaliencyConfig(),
 ) -> np.ndarray:
     """float32 (T, H, W) in [0, 1]: one map per step of `rollout` that `demo` has an action for
-    (T = explained_steps), divided by the largest value over the whole rollout (all zeros stay
-    zeros), so that maps of one rollout compare across steps. For an overlay on the rollout's
-    frames 0 .. T-1."""
+    (T = explained_steps: the steps before either episode ended), divided by the largest value
+    over the whole rollout (all zeros stay zeros), so that maps of one rollout compare across
+    steps. For an overlay on the rollout's frames 0 .. T-1."""
     check_method(method)
-    steps = explained_steps(rollout, demo)
+    steps = explained_steps(world, rollout, demo)
     obs = rollout.observations[:steps]  # (T, H, W, 3) uint8
     features = None
     if method == "kernel_shap":

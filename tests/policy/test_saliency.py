@@ -22,6 +22,7 @@ from policy.saliency import (
     attribute,
     explained_steps,
     grad_cam_layer,
+    live_steps,
     occlusion_window,
     saliency_maps,
 )
@@ -220,8 +221,8 @@ def test_the_steps_before_divergence_are_those_whose_frames_are_the_demonstratio
     for world in (doorkey, nav):
         task, rollout = failing_test_task(world, base_policy(world), "object_ti", 0)
         demo = world.demonstrate(task)
-        steps = explained_steps(rollout, demo)
-        assert before_divergence(world, demo, demo) == explained_steps(demo, demo)
+        steps = explained_steps(world, rollout, demo)
+        assert before_divergence(world, demo, demo) == explained_steps(world, demo, demo)
         n = before_divergence(world, rollout, demo)
         assert 1 <= n < steps, (world.name, n)  # the failed rollout leaves the demonstration
         frames = np.any(rollout.observations[: n + 1] != demo.observations[: n + 1], axis=-1)
@@ -230,3 +231,19 @@ def test_the_steps_before_divergence_are_those_whose_frames_are_the_demonstratio
             assert not share[:n].any() and share[n] > 0, share
         else:
             assert (share[:n] <= DIVERGED).all() and share[n] > DIVERGED, share
+
+
+def test_explained_steps_end_where_an_episode_ends():
+    """A DoorKey demonstration reaches the goal before the horizon; its later steps only repeat
+    the last frame and action, so they are not explained."""
+    world = get_world("doorkey")
+    policy = base_policy(world)
+    task, rollout = failing_test_task(world, policy, "object_ti", 0)
+    demo = world.demonstrate(task)
+    ended = live_steps(world, demo)
+    assert ended < demo.horizon, ended
+    assert world.done(demo.scenes[ended]) and not any(map(world.done, demo.scenes[:ended]))
+    steps = explained_steps(world, rollout, demo)
+    assert steps == min(ended, live_steps(world, rollout)), steps
+    maps = saliency_maps(world, policy, rollout, demo, "grad_cam")
+    assert len(maps) == steps, (len(maps), steps)
