@@ -12,11 +12,12 @@ A package gives where its tasks start and what its table offers; everything else
     world.way(scene)                  (from, to) (x, y) of what the task carries, or None
     world.grip_pos(env)               float (3,): the gripper where the environment is now
 
-Shifts    object_ti (one of `workspace.recoloured` recoloured, R' lets its colour go),
-          object_tr (the `workspace.target` recoloured, R' names its colour; offered only where
-          a task has a target), distractor_ti (a block added clear of the way), distractor_tr
-          (a block added beside the way, R' says leave it where it is), other (the object
-          starts where training never put it)
+Shifts    object_ti (one of `workspace.recoloured` recoloured; R' lets its colour go to any
+          the other slots do not have: `told_apart`), object_tr (the `workspace.target`
+          recoloured, R' names its colour; offered only where a task has a target),
+          distractor_ti (a block coloured unlike the slots, added clear of the way),
+          distractor_tr (the same beside the way; R' says leave it where it is), other (the
+          object starts where training never put it)
 """
 
 from __future__ import annotations
@@ -139,9 +140,16 @@ def train_task(world, seed: int = 0) -> Task:
     return Task(world.name, world.reset_scene(seed), train_reward(world), "train", seed)
 
 
+def told_apart(world, slot: str) -> tuple[str, ...]:
+    """The colours `slot` may take and still be told apart from the world's other slots: the
+    palette less every other slot's colour as built (a table the target's red hides the
+    target from the camera; a block the cube's grey is a second cube)."""
+    others = {world.built[s.name] for s in world.slot_specs if s.name != slot}
+    return tuple(c for c in PALETTE if c not in others)
+
+
 def _recoloured(world, scene: Scene, slot: str, rng) -> tuple[Scene, str]:
-    taken = {scene.obj(s.name).value(COLOUR) for s in world.slot_specs}
-    options = [c for c in PALETTE if c not in taken]
+    options = [c for c in told_apart(world, slot) if c != scene.obj(slot).value(COLOUR)]
     colour = options[rng.integers(len(options))]
     return scene.with_obj(scene.obj(slot).with_value(COLOUR, colour)), colour
 
@@ -165,7 +173,7 @@ def test_task(world, shift: str, seed: int) -> Task:
         scene, colour = _recoloured(world, scene, slot, rng)
         i = [s for s, _, _ in allowed].index(slot)
         if shift == "object_ti":
-            allowed[i] = (slot, COLOUR, tuple(PALETTE))
+            allowed[i] = (slot, COLOUR, told_apart(world, slot))
             reward = Reward(
                 f"{world.instruction}, whatever the {slot}'s colour",
                 base.relevant - {(slot, COLOUR)},
@@ -180,7 +188,7 @@ def test_task(world, shift: str, seed: int) -> Task:
         return Task(world.name, scene, reward, shift, seed, (slot, COLOUR))
     if shift.startswith("distractor"):
         tr = shift == "distractor_tr"
-        others = [c for c in PALETTE if c not in {world.built[s.name] for s in world.slot_specs}]
+        others = told_apart(world, DISTRACTOR)
         colour = others[rng.integers(len(others))]
         d = scene.obj(DISTRACTOR).with_value(COLOUR, colour)
         scene = scene.with_obj(replace(d, present=True))
@@ -197,7 +205,7 @@ def test_task(world, shift: str, seed: int) -> Task:
         else:
             allowed += [
                 (DISTRACTOR, PRESENCE, (PRESENT, ABSENT)),
-                (DISTRACTOR, COLOUR, tuple(PALETTE)),
+                (DISTRACTOR, COLOUR, others),
             ]
             reward = Reward(
                 f"{world.instruction}, whatever else is on the table",

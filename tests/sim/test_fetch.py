@@ -159,6 +159,20 @@ def test_every_shift_is_solved_by_the_expert_and_carries_its_cause(world):
                 assert task.scene.obj(slot).value(concept) != world.built[slot]
 
 
+def test_no_task_hides_one_slot_in_the_colour_of_another(world):
+    """A table in the target's red hides the target from the camera; a block in the cube's grey
+    is a second cube: R' accepts neither, so no fresh task or variant shows one."""
+    slots = [s.name for s in world.slot_specs]
+    for shift in ("object_ti", "distractor_ti"):
+        for seed in range(6):
+            task = world.test_task(shift, seed)
+            for fresh in world.fresh_tasks(task, 20, seed):
+                shown = [(o.slot, o.value("colour")) for o in fresh.scene.objects if o.present]
+                for slot, colour in shown:
+                    others = {world.built[s] for s in slots if s != slot}
+                    assert colour not in others, (shift, seed, slot, colour)
+
+
 def test_a_distractor_starts_where_the_scene_says_and_waits_out_of_view_when_absent(world):
     task = world.test_task("distractor_ti", 0)
     env = world.restore(task.scene)
