@@ -11,12 +11,15 @@ from sim import PAPER_WORLDS
 PAPER_ORDER = {name: i for i, name in enumerate(PAPER_WORLDS)}
 
 
+def world_order(world: str) -> tuple[int, str]:
+    """A sort key that puts the paper's worlds first, in its order, then the others by name."""
+    return (PAPER_ORDER.get(world, len(PAPER_WORLDS)), world)
+
+
 def load_records(out: Path) -> list[dict]:
     """Every world's JSON in the folder, in the paper's order then by name."""
     records = [json.loads(f.read_text()) for f in sorted(out.glob("*.json"))]
-    return sorted(
-        records, key=lambda r: (PAPER_ORDER.get(r["world"], len(PAPER_WORLDS)), r["world"])
-    )
+    return sorted(records, key=lambda r: world_order(r["world"]))
 
 
 def figure_text(f: dict, digits: int, *, to: str = "–", grouped: bool = True) -> str:

@@ -13,8 +13,10 @@ from pathlib import Path
 
 from dfa_viz.experiment.explain import READOUTS
 from dfa_viz.experiment.unplanted import NONE, SALIENCY_COLUMNS, TASK_COLUMNS
+from dfa_viz.records import world_order
 from policy.methods import METHOD_NAMES, METHODS
 from search.stats import wilson
+from search.unplanted import KINDS
 from sim.core import UserError, files
 
 # the planted benchmark's figures this table is read against (docs/results/explain/table.md,
@@ -30,6 +32,12 @@ PLANTED = (
 
 def _key(r: dict) -> tuple[str, str, str]:
     return (r["world"], r["policy"], r["kind"])
+
+
+def _order(r: dict) -> tuple:
+    """Rows and runs in the paper's world order, then by policy and kind (KINDS' order),
+    whichever ran last."""
+    return (*world_order(r["world"]), r["policy"], KINDS.index(r["kind"]))
 
 
 def read_csv(path: Path, columns: Sequence[str]) -> list[dict]:
@@ -102,7 +110,8 @@ def _ranks(values: list[int]) -> str:
 
 def table(tasks: list[dict], sals: list[dict], runs: list[dict]) -> str:
     groups: dict[tuple[str, str, str], list[dict]] = {}
-    for r in tasks:
+    runs = sorted(runs, key=_order)
+    for r in sorted(tasks, key=_order):
         groups.setdefault(_key(r), []).append(r)
     lines = [
         "# Failures that were not planted: the search, saliency and the learned prior against "

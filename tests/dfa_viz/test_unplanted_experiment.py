@@ -1,14 +1,16 @@
 """`dfa experiment unplanted`: one nav2d compound task measured end to end into a results
-folder, and bad input as one line with exit 2."""
+folder, bad input as one line with exit 2, and the table in the paper's world order."""
 
 import csv
 import json
+from pathlib import Path
 
 import pytest
 
 from dfa_viz.cli import main
 from dfa_viz.experiment.unplanted import SALIENCY_COLUMNS, TASK_COLUMNS, run_world
-from dfa_viz.experiment.unplanted_table import merge
+from dfa_viz.experiment.unplanted_table import merge, read_csv, table
+from dfa_viz.records import world_order
 from search.planted import fit_on_planted
 
 
@@ -81,3 +83,15 @@ def test_cross_fitted_priors_leave_each_task_out(nav, nav_policy):
         alone = fit(nav, logs[:j] + logs[j + 1 :], scenes)  # every other task, never this one
         assert row["prior_rank"] == str(prior_rank_of(nav, alone, logs[j], logs[j].singles))
         assert 1 <= int(row["prior_rank"]) <= int(row["n_at_size"])
+
+
+def test_the_table_lists_worlds_in_the_papers_order_whichever_ran_last():
+    out = Path(__file__).parents[2] / "docs" / "results" / "unplanted"
+    tasks = read_csv(out / "tasks.csv", TASK_COLUMNS)
+    sals = read_csv(out / "saliency.csv", SALIENCY_COLUMNS)
+    runs = json.loads((out / "runs.json").read_text())
+    text = table(tasks, sals, runs)
+    assert table(tasks[::-1], sals, runs[::-1]) == text
+    commands = [line for line in text.splitlines() if line.startswith("- `dfa experiment")]
+    worlds = [line.split("--world ")[1].split()[0] for line in commands]
+    assert worlds == sorted(worlds, key=world_order) and len(set(worlds)) >= 3
