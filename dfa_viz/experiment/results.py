@@ -28,7 +28,7 @@ from dfa_viz.experiment.conditions import (
 )
 from dfa_viz.experiment.folder import ResultsFolder
 from dfa_viz.experiment.runner import COLUMNS, KEY, Settings
-from dfa_viz.records import PAPER_ORDER
+from dfa_viz.records import world_order
 from sim.core import files
 
 TIMING_COLUMNS = (*KEY, "duration_s", "cpu_s", "host")
@@ -106,7 +106,7 @@ SOURCES = {
 def panels(table: dict[tuple[str, str, str, int], Cell]) -> list[tuple[str, str]]:
     """The (world, shift) pairs present, in the paper's order (object shifts first)."""
     pairs = {(w, s) for w, s, _, _ in table}
-    return sorted(pairs, key=lambda p: (p[1] != "object", PAPER_ORDER.get(p[0], 9), p[0]))
+    return sorted(pairs, key=lambda p: (p[1] != "object", *world_order(p[0])))
 
 
 def ordering(table, world: str, shift: str, budgets: Sequence[int]) -> str:
