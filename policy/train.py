@@ -255,13 +255,19 @@ def training_demos(world: World, seed: int = 0) -> list[Trajectory]:
     return list(_DEMOS[key][1])
 
 
+def replays_rollouts(world: World) -> bool:
+    """True where finetuning replays the base policy's own rollouts beside its training
+    demonstrations (`replayed`): a world whose base is cloned with DAgger."""
+    return world.cloning.dagger_rounds > 0
+
+
 def replayed(world: World, base: Policy, demos: Sequence[Trajectory]) -> list[Trajectory]:
     """What finetuning `base` replays so that it keeps what it did elsewhere: the training
     demonstrations `demos` and, where the world clones with DAgger (a base fitted on its own
     states too), the base's rollouts on the training tasks, every scene labelled by the expert.
     Replaying the demonstrations alone pulls such a base back toward its first clone. The
     rollouts are made once per base policy for the last few asked."""
-    if not world.cloning.dagger_rounds:
+    if not replays_rollouts(world):
         return list(demos)
     key = (id(world), id(base))  # both kept beside the rollouts: no other object takes an id
     if key not in _ROLLOUTS:

@@ -22,6 +22,7 @@ from dfa_viz.app.runstate import RunState
 from dfa_viz.app.view import View
 from dfa_viz.loop import RunRecord, adapt_and_evaluate, diagnose, start
 from policy import failing_test_task, save_policy
+from policy.train import replays_rollouts
 from search import SearchConfig
 from sim.core import Label, UserError, World, require_success
 
@@ -265,7 +266,7 @@ class LoopState(RunState):
                 self._notify({"losses"})
 
         making = f"making up to {config.budget - 1} variants of the demonstration"
-        if world.cloning.dagger_rounds and config.finetuning.replay_share > 0:  # policy.replayed
+        if replays_rollouts(world) and config.finetuning.replay_share > 0:
             making = f"rolling the base policy out on its training tasks to replay, {making}"
         self.jobs.progress(0.0, making)
         base = self.policies.get(world)
