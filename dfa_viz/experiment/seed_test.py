@@ -110,10 +110,12 @@ def verdict(c: SeedComparison, p_holm: float | None, m: int) -> str:
     if p_holm is None:
         return "no seed differs: nothing to test"
     if c.test.n < MIN_SEEDS:
+        n, first = c.test.n, ALPHA / m
+        reach = "cannot give p below" if c.test.p_min > first else "can give p as low as"
         return (
-            f"too few seeds to test: {c.test.n} differ{'s' if c.test.n == 1 else ''}, fewer "
-            f"than {MIN_SEEDS}; {c.test.n} cannot give p below 1/2^{c.test.n} = "
-            f"{_p(c.test.p_min)}, and Holm's first threshold is 0.05/{m} = {_p(ALPHA / m)}"
+            f"too few seeds to test: {n} differ{'s' if n == 1 else ''}, fewer than {MIN_SEEDS}; "
+            f"{n} {reach} 1/2^{n} = {_p(c.test.p_min)}, and Holm's first threshold is "
+            f"0.05/{m} = {_p(first)}"
         )
     if p_holm <= ALPHA:
         return f"CF H > Baseline H at {ALPHA} after Holm over {m} rows"

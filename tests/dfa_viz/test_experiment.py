@@ -224,7 +224,11 @@ def test_cf_h_against_baseline_h_has_one_unit_per_seed():
     text = "\n".join(seed_test.markdown(rows, [("nav2d", "object")]))
     assert "| nav2d, object | 5 | +0.50 [+0.50, +0.50] | 5 / 0 / 0 | 0.0312 (0.0312) |" in text
     assert "too few seeds to test: 5 differ" in text and "significant" not in text
+    assert "5 can give p as low as 1/2^5 = 0.0312" in text, "1/32 is under 0.05/1"
     assert text.endswith("| 10 |"), "5 seeds would pass 0.05 (1/32), but 10 must differ"
+    three = _runs({s: [0.9, 1.0] for s in range(3)}, {s: [0.4, 0.5] for s in range(3)})
+    text = "\n".join(seed_test.markdown(three, [("nav2d", "object")]))
+    assert "3 cannot give p below 1/2^3 = 0.125" in text
 
 
 def test_enough_seeds_are_tested_and_ties_are_not_counted():
