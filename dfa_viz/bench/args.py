@@ -9,6 +9,8 @@ from pathlib import Path
 
 from sim import PAPER_WORLDS
 
+MINIGRID = "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12"  # measured with docs/examples' SB3 agent
+
 
 @dataclass(frozen=True)
 class BenchArgs:
@@ -20,7 +22,7 @@ class BenchArgs:
     (load, slider latency, finetune round trip).
     """
 
-    worlds: tuple[str, ...] = (*PAPER_WORLDS, "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12")
+    worlds: tuple[str, ...] = (*PAPER_WORLDS, MINIGRID)
     """Which worlds to measure (the MiniGrid one with the stable-baselines3 agent of
     docs/examples; fetch:FetchPickAndPlace-v4 when named: its search alone, some minutes)."""
     repeats: int = 3

@@ -12,7 +12,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from dfa_viz.bench.args import BenchArgs
+from dfa_viz.bench.args import MINIGRID, BenchArgs
 from dfa_viz.bench.closed_loop import PAIRS
 from dfa_viz.bench.prior import bench_prior, prior_rows
 from dfa_viz.bench.search import bench_world
@@ -63,7 +63,6 @@ class WorldBench:
     policy take minutes each there. Not among `dfa bench`'s default worlds."""
 
 
-MINIGRID = "minigrid:MiniGrid-DoorKey-5x5-v0:tile=12"
 BENCHES = {
     "nav2d": WorldBench(whole_search=((1, 2), 0.5)),
     "doorkey": WorldBench(whole_search=((1,), 0.5)),

@@ -36,8 +36,8 @@ from dfa_viz.experiment.explain import (
     readouts_of,
 )
 from dfa_viz.experiment.folder import ResultsFolder
+from dfa_viz.records import world_order
 from search.stats import t_interval, wilson
-from sim import PAPER_WORLDS
 from sim.core import files
 
 METRICS = {
@@ -177,7 +177,7 @@ def panel_order(rows: Sequence[Mapping[str, str]]) -> tuple[list[str], list[tupl
     explainers = [e for e in EXPLAINERS if any(r["explainer"] == e for r in rows)]
     pairs = sorted(
         {(r["world"], r["shift"]) for r in rows},
-        key=lambda p: (_rank(p[0], PAPER_WORLDS), _rank(p[1], EXPLAIN_SHIFTS)),
+        key=lambda p: (world_order(p[0]), _rank(p[1], EXPLAIN_SHIFTS)),
     )
     return explainers, pairs
 

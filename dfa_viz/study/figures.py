@@ -20,8 +20,9 @@ import numpy as np
 import rerun as rr
 
 from dfa_viz.png import save_figure
+from dfa_viz.records import world_order
 from dfa_viz.rrd import RrdFile
-from dfa_viz.study.analysis import WORLD_ORDER, Analysis, Cell, paper_accuracy, table_md
+from dfa_viz.study.analysis import Analysis, Cell, paper_accuracy, table_md
 from dfa_viz.study.protocol import CONDITIONS, KINDS
 
 APP_ID = "dfa-study"
@@ -33,10 +34,7 @@ def write_plot(path: Path, cells: list[Cell]) -> Path:
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    worlds = sorted(
-        dict.fromkeys(c.world for c in cells),
-        key=lambda w: WORLD_ORDER.index(w) if w in WORLD_ORDER else len(WORLD_ORDER),
-    )
+    worlds = sorted({c.world for c in cells}, key=world_order)
     conds = [c for c in CONDITIONS if any(x.condition == c for x in cells)]
     kinds = [k for k in KINDS if any(x.kind == k for x in cells)]
     fig = Figure(figsize=(4.2 * len(worlds), 3.4))
