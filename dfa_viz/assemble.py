@@ -237,7 +237,7 @@ def _run(args: RunArgs, world: World, phase: Phases, overrides, learned, progres
         on_asked=lambda asked: phase(said[asked]),
     )
     bars: dict[str, tqdm] = {}
-    steps = args.adapt.train_config(0).steps
+    steps = args.adapt.total_steps
     n_eval = args.adapt.finetuning.n_eval
     phase(f"rolling {who} out on the test task")
 

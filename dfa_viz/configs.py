@@ -41,6 +41,12 @@ class Finetuning:
     n_eval: int = 10
     """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
     paper's 10)."""
+    dagger_rounds: int = 0
+    """DAgger rounds after finetuning (policy.train.dagger), as a base cloned with them was
+    (World.cloning): each rolls the finetuned policy out from the start of every finetuning
+    trajectory, labels each scene it visited with the world's scripted expert's action, and
+    finetunes again on all of it, as many steps again. The labels come from the simulator's
+    expert, not from the user: a simulated user's help. 0: plain finetuning."""
 
     @property
     def uses_training_demos(self) -> bool:
@@ -57,6 +63,8 @@ class Finetuning:
         ):
             if value < 1:
                 raise UserError(f"--{name} must be at least 1, not {value}")
+        if self.dagger_rounds < 0:
+            raise UserError(f"--dagger-rounds must be 0 or more, not {self.dagger_rounds}")
         if not 0.0 <= self.replay_share < 1.0:
             raise UserError(
                 f"--replay-share is a share of a batch in [0, 1), not {self.replay_share}"
@@ -87,6 +95,12 @@ class AdaptConfig:
         f = self.finetuning
         steps = max(f.steps, f.steps_per_trajectory * self.budget)
         return TrainConfig(steps, FINETUNE.batch_size, FINETUNE.lr, seed, shift_px=shift_px)
+
+    @property
+    def total_steps(self) -> int:
+        """Gradient steps finetuning takes in all: train_config's steps for the first fit and
+        as many for each DAgger round."""
+        return self.train_config(0).steps * (1 + self.finetuning.dagger_rounds)
 
     @classmethod
     def from_dict(cls, d: dict) -> AdaptConfig:

@@ -172,15 +172,21 @@ def finetune(
     config: TrainConfig = FINETUNE,
     replay: Sequence[Trajectory] = (),
     replay_share: float = 0.5,
+    rounds: int = 0,
+    tasks: Sequence[Task] = (),
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
     """Finetune a copy of `base` on the demonstration and its augmentations; base is untouched.
 
     replay, replay_share: see behaviour_clone (e.g. `training_demos(world)`).
+    rounds, tasks: DAgger rounds after the first fit, each rolling the policy out on `tasks`
+        (see dagger); 0: plain finetuning.
     """
-    return behaviour_clone(
+    return dagger(
         world,
         demos,
+        tasks,
+        rounds=rounds,
         config=config,
         init=base,
         replay=replay,
@@ -205,14 +211,19 @@ def dagger(
     *,
     rounds: int,
     config: TrainConfig = BASE,
+    init: Policy | None = None,
+    replay: Sequence[Trajectory] = (),
+    replay_share: float = 0.5,
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
     """Behaviour cloning with DAgger (Ross et al. 2011) and the scripted expert as the labeller:
-    clone on `demos`, then `rounds` times roll the policy out on `tasks`, label every scene it
-    visited with the expert's action, add those to the data and clone again from the policy
-    so far (config.steps each time, the optimiser's seed moved on by the round).
+    clone on `demos` (from a copy of `init` when given, with `replay` as behaviour_clone mixes
+    it), then `rounds` times roll the policy out on `tasks`, label every scene it visited with
+    the expert's action, add those to the data and clone again from the policy so far
+    (config.steps each time, the optimiser's seed moved on by the round).
     Returns the last policy and the loss of every step of every round."""
-    policy, losses = behaviour_clone(world, demos, config=config, on_loss=on_loss)
+    fit = {"replay": replay, "replay_share": replay_share}
+    policy, losses = behaviour_clone(world, demos, config=config, init=init, on_loss=on_loss, **fit)
     data = list(demos)
     for r in range(1, rounds + 1):
         visited = world.rollout_batch(tasks, policy)
@@ -223,6 +234,7 @@ def dagger(
             config=replace(config, seed=config.seed + r),
             init=policy,
             on_loss=None if on_loss is None else _counted_on(on_loss, len(losses)),
+            **fit,
         )
         losses += more
     return policy, losses

@@ -90,7 +90,7 @@ class Page:
         self.adapt_folder = gui.add_folder("5 · Adapt", visible=False)
         with self.adapt_folder:
             self.finetune = gui.add_button("Augment & finetune", icon=viser.Icon.BOLT)
-            steps = state.adapt.train_config(0).steps
+            steps = state.adapt.total_steps
             data, series, scales, axes = plots.loss_plot([], steps)
             self.loss = gui.add_uplot(
                 data,
@@ -303,7 +303,7 @@ class Page:
             losses = run.adaptation.losses
         self.loss.visible = bool(losses)
         if losses:
-            data, _, scales, axes = plots.loss_plot(losses, view.adapt.train_config(0).steps)
+            data, _, scales, axes = plots.loss_plot(losses, view.adapt.total_steps)
             self.loss.scales, self.loss.axes = scales, axes
             self.loss.data = data
         self.results.content = results_text(view)

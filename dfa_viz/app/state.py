@@ -253,7 +253,7 @@ class LoopState(RunState):
             return self._start("finetune", job, "augmenting the demonstration")
 
     def _finetune_job(self, rec: RunRecord, world: World) -> None:
-        config, steps, last = self.adapt, self.adapt.train_config(rec.seed).steps, [0.0]
+        config, steps, last = self.adapt, self.adapt.total_steps, [0.0]
         self.losses = []
 
         def on_loss(step: int, loss: float) -> None:

@@ -138,7 +138,7 @@ def _measure(browser, app, *, loads: int, moves: int, finetune: bool) -> dict:
         out["nav2d_finetune_round_trip_cpu_s"] = round(time.process_time() - cpu0, 2)
         ev = app.state.record.evaluation  # success on fresh tasks with the shift
         out["nav2d_success_before_after"] = (ev.before.on_shift, ev.after.on_shift)
-        out["finetune_steps"] = app.state.adapt.train_config(0).steps
+        out["finetune_steps"] = app.state.adapt.total_steps
     page.close()
     return out
 

@@ -85,7 +85,12 @@ class Settings:
     trajectory, or "fixed", one answer per seed."""
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """As config.json holds them: without `dagger_rounds` where it is 0, so that folders
+        made before it was chosen read back the same."""
+        doc = asdict(self)
+        if not self.finetuning.dagger_rounds:
+            del doc["finetuning"]["dagger_rounds"]
+        return doc
 
     def config(self, budget: int) -> AdaptConfig:
         return AdaptConfig(budget, self.finetuning)

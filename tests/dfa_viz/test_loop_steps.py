@@ -127,3 +127,38 @@ def test_one_task_gives_one_answer_through_dfa_run_the_page_and_the_experiment(n
     assert row["n_distinct"] == str(1 + len(cli.adaptation.augmented))
     assert row["final_loss"] == f"{cli.adaptation.losses[-1]:.6g}"
     assert j["success_after"] - j["success_before"] >= 0.2 - 1e-9  # 0.4 -> 0.7 measured
+
+
+def test_dagger_rounds_finetune_again_on_the_states_the_finetuned_policy_visits(nav, nav_policy):
+    import torch
+
+    from dfa_viz.configs import AdaptConfig, Finetuning
+    from dfa_viz.experiment.runner import Settings
+    from dfa_viz.loop import adapt
+    from sim.core import UserError
+
+    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 0)
+    plain = AdaptConfig(budget=4, finetuning=Finetuning(steps=30, steps_per_trajectory=1))
+    record = run_loop(nav, nav_policy, task, SimulatedUser(nav), seed=0, config=plain)
+    rounds = dataclasses.replace(
+        plain, finetuning=Finetuning(steps=30, steps_per_trajectory=1, dagger_rounds=2)
+    )
+    assert rounds.total_steps == 3 * plain.total_steps == 90
+    done = {}
+    for name, config in (("plain", plain), ("rounds", rounds)):
+        done[name] = adapt(
+            nav, nav_policy, task, record.demo, record.feedback, config=config, seed=0
+        )
+    assert len(done["plain"].losses) == 30 and len(done["rounds"].losses) == 90
+    same = [[t.scenes for t in done[n].augmented] for n in ("plain", "rounds")]
+    assert same[0] == same[1] and len(same[0]) == 3  # the same variants
+    weights = zip(
+        done["plain"].policy.net.state_dict().values(),
+        done["rounds"].policy.net.state_dict().values(),
+        strict=True,
+    )
+    assert not all(torch.equal(a, b) for a, b in weights)
+    assert "dagger_rounds" not in Settings().to_dict()["finetuning"]  # old folders read the same
+    assert Settings(rounds.finetuning).to_dict()["finetuning"]["dagger_rounds"] == 2
+    with pytest.raises(UserError, match="--dagger-rounds must be 0 or more"):
+        Finetuning(dagger_rounds=-1).check()

@@ -14,6 +14,7 @@ from policy.train import (
     behaviour_clone,
     dagger,
     expert_relabelled,
+    finetune,
     replayed,
     training_demos,
     training_tasks,
@@ -83,3 +84,28 @@ def test_finetuning_replays_a_dagger_base_on_its_own_states_labelled_by_the_expe
         assert np.array_equal(labelled.actions, np.stack(want))
     again = replayed(asking, nav_policy, demos)
     assert all(a is b for a, b in zip(again, data, strict=True))  # rolled out once
+
+
+def test_finetuning_with_a_round_fits_the_scenes_the_finetuned_policy_visits(nav, nav_policy):
+    tasks = [nav.test_task("object_ti", seed=i) for i in range(3)]
+    demos = [nav.demonstrate(t) for t in tasks]
+    config = dataclasses.replace(QUICK, lr=5e-4)
+    plain, _ = finetune(nav, nav_policy, demos, config=config)
+    same, _ = finetune(nav, nav_policy, demos, config=config, rounds=0, tasks=tasks)
+    for a, b in zip(plain.net.state_dict().values(), same.net.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    visited = [
+        expert_relabelled(nav, t, v)
+        for t, v in zip(tasks, nav.rollout_batch(tasks, plain), strict=True)
+    ]
+    more, losses = finetune(nav, nav_policy, demos, config=config, rounds=1, tasks=tasks)
+    assert len(losses) == 2 * config.steps and np.isfinite(losses).all()
+    # the round: the first fit again, on its own states labelled by the expert as well
+    again, _ = behaviour_clone(
+        nav, demos + visited, config=dataclasses.replace(config, seed=1), init=plain
+    )
+    for a, b in zip(again.net.state_dict().values(), more.net.state_dict().values(), strict=True):
+        assert torch.equal(a, b)
+    # measured 0.0021 against 0.0030 (a plain finetune of 2 x steps: 0.0027), 1 and 2 threads
+    assert _error(nav, more, visited) < _error(nav, plain, visited)
+    assert nav_policy.net is not plain.net and nav_policy.net is not more.net  # base untouched
