@@ -3,6 +3,7 @@ folder, bad input as one line with exit 2, and the table in the paper's world or
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -95,3 +96,15 @@ def test_the_table_lists_worlds_in_the_papers_order_whichever_ran_last():
     commands = [line for line in text.splitlines() if line.startswith("- `dfa experiment")]
     worlds = [line.split("--world ")[1].split()[0] for line in commands]
     assert worlds == sorted(worlds, key=world_order) and len(set(worlds)) >= 3
+
+
+def test_a_random_order_that_misses_too_few_tasks_to_test_against_is_said_so():
+    out = Path(__file__).parents[2] / "docs" / "results" / "unplanted"
+    said = re.findall(
+        r"the random order's object top-1 is [^\[]*\[(\d+)/(\d+)\]( \(it misses (\d+):)?",
+        (out / "table.md").read_text(),
+    )
+    misses = [int(n) - int(k) for k, n, _, _ in said]
+    assert {m <= 4 for m in misses} == {True, False}  # both kinds are in the table
+    for (_, _, caveat, shown), m in zip(said, misses, strict=True):  # 1/2^5 < 0.05
+        assert bool(caveat) == (m <= 4) and (not caveat or int(shown) == m)
