@@ -69,6 +69,7 @@ BENCHES = {
     "tabletop": WorldBench(searches=False, at_scale=True),
     MINIGRID: WorldBench(policy="sb3:docs/examples/doorkey5x5_ppo.zip"),
     "fetch:FetchPickAndPlace-v4": WorldBench(searches=False, closed_loop=PAIRS),
+    "robosuite:Lift": WorldBench(searches=False, closed_loop=PAIRS),
 }
 OUTSIDE_POLICIES = {name: b.policy for name, b in BENCHES.items() if b.policy is not None}
 MIN_RATIO = 10.0
