@@ -6,16 +6,11 @@ base (61 of its 200 training tasks): kept so that `dfa run --world robosuite:Lif
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import torch
 
-import sim
-from policy.base import record_folder
-from policy.checkpoint import load_policy
 from policy.model import ImagePolicy, Policy
-from policy.train import base_arch, base_config
+from policy.train import base_arch
 
 LIFT = "robosuite:Lift"
 HELD_OUT = range(1000, 1010)  # training-distribution tasks no demonstration was drawn from
@@ -26,13 +21,8 @@ def _error(policy: Policy, demo) -> float:
     return float(np.abs(policy(demo.observations[:-1]) - demo.actions).sum(axis=1).mean())
 
 
-def test_the_committed_lift_policy_has_todays_recipe_imitates_and_lifts_held_out_cubes():
-    world = sim.get_world(LIFT)
-    folder = record_folder(world)
-    recipe = json.loads((folder / "config.json").read_text())["meta"]["recipe"]
-    assert recipe["train"] == json.loads(json.dumps(base_config(world).to_dict()))
-    assert recipe["policy"] == json.loads(json.dumps(base_arch(world).to_dict()))
-    policy = load_policy(folder, world=world)
+def test_the_committed_lift_policy_has_todays_recipe_imitates_and_lifts_held_out_cubes(committed):
+    world, _, policy = committed(LIFT)
     torch.manual_seed(0)
     untrained = Policy(ImagePolicy(base_arch(world)))
     for seed in HELD_OUT[:2]:
