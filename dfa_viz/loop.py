@@ -284,18 +284,15 @@ def adapt(
     known = (training_demos(world) if reads else ()) if known is None else known
     if augmented is None:
         augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
-    trajectories = fill_budget(demo, augmented, config.budget)
-    rounds = config.finetuning.dagger_rounds
-    starts = dict.fromkeys(t.scenes[0] for t in trajectories) if rounds else {}
     tuned, losses = finetune(
         world,
         base,
-        trajectories,
+        fill_budget(demo, augmented, config.budget),
         config=config.train_config(seed, world.cloning.shift_px),
         replay=replayed(world, base, known) if config.finetuning.replay_share > 0 else (),
         replay_share=config.finetuning.replay_share,
-        rounds=rounds,
-        tasks=[task.with_scene(s) for s in starts],
+        rounds=config.finetuning.dagger_rounds,
+        task=task,
         on_loss=on_loss,
     )
     return Adaptation(

@@ -173,19 +173,20 @@ def finetune(
     replay: Sequence[Trajectory] = (),
     replay_share: float = 0.5,
     rounds: int = 0,
-    tasks: Sequence[Task] = (),
+    task: Task | None = None,
     on_loss: LossCallback | None = None,
 ) -> tuple[Policy, list[float]]:
     """Finetune a copy of `base` on the demonstration and its augmentations; base is untouched.
 
     replay, replay_share: see behaviour_clone (e.g. `training_demos(world)`).
-    rounds, tasks: DAgger rounds after the first fit, each rolling the policy out on `tasks`
-        (see dagger); 0: plain finetuning.
+    rounds, task: DAgger rounds after the first fit (see dagger), each rolling the policy out
+        from every distinct start of `demos` under `task`'s reward; 0: plain finetuning.
     """
+    starts = dict.fromkeys(d.scenes[0] for d in demos) if rounds and task is not None else {}
     return dagger(
         world,
         demos,
-        tasks,
+        [task.with_scene(s) for s in starts if task is not None],
         rounds=rounds,
         config=config,
         init=base,

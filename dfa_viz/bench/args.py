@@ -24,8 +24,8 @@ class BenchArgs:
 
     worlds: tuple[str, ...] = (*PAPER_WORLDS, MINIGRID)
     """Which worlds to measure (the MiniGrid one with the stable-baselines3 agent of
-    docs/examples; fetch:FetchPickAndPlace-v4 or robosuite:Lift when named: its search alone,
-    some minutes)."""
+    docs/examples; a closed-loop MuJoCo world of dfa_viz.bench.run.BENCHES when named: its
+    search alone, some minutes)."""
     repeats: int = 3
     """Timing repeats (the best is reported)."""
     page: bool = True
