@@ -38,6 +38,10 @@ class Finetuning:
     """The looks variants take first on each layout: "test", the test task's own (what the
     user saw go wrong); "spread", each TI look's accepted values in turn over the layouts, so
     that a budget shows many of them (spread_looks in policy.variants)."""
+    replay_looks: Literal["training", "varied"] = "training"
+    """The looks of the replayed training data: "training", as the base saw it; "varied",
+    each replayed trajectory re-rendered once over the TI labels (policy.replay_looks), so
+    that the whole training distribution is seen in the looks the user accepts."""
     n_eval: int = 10
     """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
     paper's 10)."""
@@ -73,6 +77,8 @@ class Finetuning:
             raise UserError(f"--sources is all or user, not {self.sources!r}")
         if self.looks not in ("test", "spread"):
             raise UserError(f"--looks is test or spread, not {self.looks!r}")
+        if self.replay_looks not in ("training", "varied"):
+            raise UserError(f"--replay-looks is training or varied, not {self.replay_looks!r}")
         return self
 
 

@@ -26,10 +26,10 @@ from typing import Any
 
 from dfa_viz.configs import AdaptConfig
 from dfa_viz.users import User
-from policy import Policy, finetune, replayed, training_demos
+from policy import Policy, finetune, training_demos
 from policy.evaluate import N_EVAL, Freshness, Score, freshness, score
-from policy.heldout import plan
-from policy.variants import fill_budget, from_feedback, render, sources, spread_looks, variants
+from policy.replay_looks import irrelevant, replay_for
+from policy.variants import fill_budget, render, sources, spread_looks, variants
 from search import SearchConfig, SearchResult, counterfactual_search
 from sim.core import EMPTY, Edit, Feedback, Label, Task, Trajectory, World, require_success
 
@@ -252,12 +252,11 @@ def augmentation(
 ) -> list[Trajectory]:
     """Up to budget - 1 variants over the TI labels from the config's sources, none on what the
     evaluation holds out (policy.heldout.plan; held_out=False: all); first in config's looks."""
-    what = from_feedback(world, feedback)
+    what, holdout = irrelevant(world, task, feedback, seed=seed, held_out=held_out)
     if what is None:
         return []
-    if held_out and world.benchmark:
-        holdout = plan(world, task, seed)
-        known, what = holdout.sources(world, known), holdout.restrict(what)
+    if holdout is not None:
+        known = holdout.sources(world, known)
     srcs = sources(task, demo, known if config.finetuning.sources == "all" else ())
     like = task.scene if config.finetuning.looks == "test" else spread_looks(task.scene, what)
     chosen = variants(world, srcs, lambda i: what, config.budget - 1, seed=seed, like=like)
@@ -284,14 +283,18 @@ def adapt(
     known = (training_demos(world) if reads else ()) if known is None else known
     if augmented is None:
         augmented = augmentation(world, task, demo, feedback, config=config, known=known, seed=seed)
+    ft = config.finetuning
+    replay = replay_for(
+        world, base, task, feedback, known, looks=ft.replay_looks, share=ft.replay_share, seed=seed
+    )
     tuned, losses = finetune(
         world,
         base,
         fill_budget(demo, augmented, config.budget),
         config=config.train_config(seed, world.cloning.shift_px),
-        replay=replayed(world, base, known) if config.finetuning.replay_share > 0 else (),
-        replay_share=config.finetuning.replay_share,
-        rounds=config.finetuning.dagger_rounds,
+        replay=replay,
+        replay_share=ft.replay_share,
+        rounds=ft.dagger_rounds,
         task=task,
         on_loss=on_loss,
     )

@@ -85,11 +85,14 @@ class Settings:
     trajectory, or "fixed", one answer per seed."""
 
     def to_dict(self) -> dict:
-        """As config.json holds them: without `dagger_rounds` where it is 0, so that folders
-        made before it was chosen read back the same."""
+        """As config.json holds them: without `dagger_rounds` where it is 0 and `replay_looks`
+        where it is "training", so that folders made before they were chosen read back the
+        same."""
         doc = asdict(self)
         if not self.finetuning.dagger_rounds:
             del doc["finetuning"]["dagger_rounds"]
+        if self.finetuning.replay_looks == "training":
+            del doc["finetuning"]["replay_looks"]
         return doc
 
     def config(self, budget: int) -> AdaptConfig:
