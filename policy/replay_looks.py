@@ -22,8 +22,6 @@ from policy.train import replayed
 from policy.variants import Irrelevant, Source, from_feedback, render, spread_looks, variants
 from sim.core import Feedback, Task, Trajectory, World
 
-LOOKS = ("training", "varied")
-
 
 def irrelevant(
     world: World, task: Task, feedback: Feedback, *, seed: int, held_out: bool = True
