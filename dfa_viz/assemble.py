@@ -10,9 +10,10 @@ from pathlib import Path
 from tqdm import tqdm
 
 from dfa_viz.configs import PriorArgs, RunArgs
-from dfa_viz.loop import RunRecord, run_loop
+from dfa_viz.loop import run_loop
 from dfa_viz.overlay import failed_saliency
 from dfa_viz.recording import write_recording
+from dfa_viz.run_record import RunRecord
 from dfa_viz.users import SimulatedUser
 from policy import base_policy, failing_test_task
 from policy.base import base_folder

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import rerun.blueprint as rrb
 
-from dfa_viz.loop import RunRecord
+from dfa_viz.run_record import RunRecord
 from policy.methods import METHOD_NAMES
 from search import distance_to_demo
 from sim.core import Trajectory, World

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dfa_viz.loop import RunRecord
+from dfa_viz.run_record import RunRecord
 from sim.core import World
 
 ALPHA_MAX = 0.85

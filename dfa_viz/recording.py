@@ -11,10 +11,10 @@ import rerun as rr
 from dfa_viz import charts
 from dfa_viz.charts import rgb
 from dfa_viz.layout import action_labels, action_series, blueprint
-from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
 from dfa_viz.report import evaluation_sentence
 from dfa_viz.rrd import RrdFile, recording_id, send_blueprint
+from dfa_viz.run_record import Evaluation, RunRecord
 from policy.methods import METHOD_NAMES
 from search import Candidate, SearchResult, distance_to_demo
 from sim.core import Edit, Feedback, Trajectory, World

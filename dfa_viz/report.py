@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dfa_viz.loop import Evaluation, RunRecord
+from dfa_viz.run_record import Evaluation, RunRecord
 from sim import get_world
 
 

@@ -9,8 +9,8 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from dfa_viz.loop import RunRecord
 from dfa_viz.recording import write_recording
+from dfa_viz.run_record import RunRecord
 from sim.core import World, files
 
 Snapshot = Callable[[], tuple[World | None, RunRecord | None, int, Path | None]]

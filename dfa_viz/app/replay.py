@@ -28,10 +28,6 @@ from dfa_viz.app.events import (
     TieChosen,
 )
 from dfa_viz.loop import (
-    Adaptation,
-    Diagnosis,
-    Evaluation,
-    RunRecord,
     adapted,
     augmentation,
     counterfactual_rollouts,
@@ -40,6 +36,7 @@ from dfa_viz.loop import (
     judged,
     start,
 )
+from dfa_viz.run_record import Adaptation, Diagnosis, Evaluation, RunRecord
 from policy import Policy, training_demos
 from policy.evaluate import freshness, score
 from sim import get_world

@@ -24,7 +24,8 @@ from dfa_viz.app.offers import Offers
 from dfa_viz.app.policies import Policies
 from dfa_viz.app.recorder import Recorder
 from dfa_viz.app.sessions import Session, SessionError
-from dfa_viz.loop import AdaptConfig, RunRecord
+from dfa_viz.loop import AdaptConfig
+from dfa_viz.run_record import RunRecord
 from sim import get_world
 from sim.core import UserError, World
 

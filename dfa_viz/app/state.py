@@ -20,7 +20,8 @@ from dfa_viz.app.demonstrate import DemoInput
 from dfa_viz.app.episodes import chosen
 from dfa_viz.app.runstate import RunState
 from dfa_viz.app.view import View
-from dfa_viz.loop import RunRecord, adapt_and_evaluate, diagnose, start
+from dfa_viz.loop import adapt_and_evaluate, diagnose, start
+from dfa_viz.run_record import RunRecord
 from policy import failing_test_task, save_policy
 from policy.train import replays_rollouts
 from search import SearchConfig

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from dfa_viz.app.jobs import Job
-from dfa_viz.loop import AdaptConfig, RunRecord
+from dfa_viz.loop import AdaptConfig
+from dfa_viz.run_record import RunRecord
 from sim.core import World
 
 

@@ -25,7 +25,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dfa_viz.loop import RunRecord
+from dfa_viz.run_record import RunRecord
 from search import distance_to_demo
 from sim.core import PRESENCE, Change, Edit, Feedback, Scene, Task, Trajectory, World
 from sim.lerobot import Episode

@@ -19,7 +19,7 @@ from pathlib import Path
 from dfa_viz.lerobot import sources as S
 from dfa_viz.lerobot.args import ExportArgs
 from dfa_viz.lerobot.episodes import run_episodes
-from dfa_viz.loop import RunRecord
+from dfa_viz.run_record import RunRecord
 from sim import get_world
 from sim.core import UserError, World
 from sim.lerobot import Episode, Written, write_dataset

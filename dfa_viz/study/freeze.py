@@ -106,8 +106,9 @@ def _write_json(path: Path, doc) -> None:
 def freeze_task(world: World, policy, slot: Slot, shift: str, protocol: Protocol, folder: Path):
     """Make one task and write its files into `folder`; returns its truth.json entry."""
     from dfa_viz.app.tables import edit_table
-    from dfa_viz.loop import RunRecord, diagnose
+    from dfa_viz.loop import diagnose
     from dfa_viz.overlay import failed_saliency
+    from dfa_viz.run_record import RunRecord
     from policy import failing_test_task
     from search import SearchConfig
 

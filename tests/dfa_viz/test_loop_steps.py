@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from dfa_viz.loop import RunRecord, run_loop
+from dfa_viz.loop import run_loop
+from dfa_viz.run_record import RunRecord
 from dfa_viz.users import SimulatedUser
 from policy import failing_test_task
 

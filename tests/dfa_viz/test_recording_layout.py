@@ -8,8 +8,9 @@ from dataclasses import replace
 
 import rerun as rr
 
-from dfa_viz.loop import RunRecord, diagnose
+from dfa_viz.loop import diagnose
 from dfa_viz.recording import Recorder, write_recording
+from dfa_viz.run_record import RunRecord
 from policy import base_policy, failing_test_task
 from search import SearchConfig
 from sim import get_world

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from dfa_viz.loop import Evaluation, RunRecord
 from dfa_viz.recording import task_text
 from dfa_viz.report import evaluation_sentence, format_report
+from dfa_viz.run_record import Evaluation, RunRecord
 from policy.evaluate import Score
 from sim import get_world
 

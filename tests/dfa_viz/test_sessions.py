@@ -106,7 +106,7 @@ def test_a_finetune_event_of_an_older_session_still_loads():
 
 def test_applying_events_needs_no_threads_or_browser(nav, nav_policy):
     """Each event returns a new record; a precondition not met is a UserError."""
-    from dfa_viz.loop import RunRecord
+    from dfa_viz.run_record import RunRecord
     from sim.core import UserError
 
     task = nav.test_task("object_ti", 1)
