@@ -139,7 +139,7 @@ def run_once(args: RunArgs, *, progress: bool = True) -> RunRecord:
     world = get_world(args.world)
     check_shift(args.shift)
     check_seed(args.seed)
-    args.adapt.check()
+    args.adapt.check(world)
     if not 1 <= args.max_size <= MAX_EDIT_SIZE:
         raise UserError(
             f"--max-size must be from 1 to {MAX_EDIT_SIZE} concept changes, not {args.max_size}"

@@ -14,7 +14,9 @@ from typing import Annotated, Literal
 
 import tyro
 
-from sim.core import UserError
+from sim.core import UserError, World
+
+REPLAY_LOOKS = ("training", "varied", "painted")  # Finetuning.replay_looks
 
 
 @dataclass(frozen=True)
@@ -38,10 +40,12 @@ class Finetuning:
     """The looks variants take first on each layout: "test", the test task's own (what the
     user saw go wrong); "spread", each TI look's accepted values in turn over the layouts, so
     that a budget shows many of them (spread_looks in policy.variants)."""
-    replay_looks: Literal["training", "varied"] = "training"
+    replay_looks: Literal["training", "varied", "painted"] = "training"
     """The looks of the replayed training data: "training", as the base saw it; "varied",
     each replayed trajectory re-rendered once over the TI labels (policy.replay_looks), so
-    that the whole training distribution is seen in the looks the user accepts."""
+    that the whole training distribution is seen in the looks the user accepts; "painted",
+    as varied with each recoloured or added object in a colour of its own beyond the named
+    ones (worlds whose renderer draws any colour: the MuJoCo worlds)."""
     n_eval: int = 10
     """Fresh tasks each policy is scored on, on the shift and over all the user wants (the
     paper's 10)."""
@@ -58,8 +62,9 @@ class Finetuning:
         replayed): a MuJoCo world makes them in minutes, so they are made only then."""
         return self.sources == "all" or self.replay_share > 0
 
-    def check(self) -> Finetuning:
-        """Raise a UserError for a setting out of range; returns self."""
+    def check(self, world: World | None = None) -> Finetuning:
+        """Raise a UserError for a setting out of range (or that `world` cannot do); returns
+        self."""
         for name, value in (
             ("steps", self.steps),
             ("steps-per-trajectory", self.steps_per_trajectory),
@@ -77,8 +82,15 @@ class Finetuning:
             raise UserError(f"--sources is all or user, not {self.sources!r}")
         if self.looks not in ("test", "spread"):
             raise UserError(f"--looks is test or spread, not {self.looks!r}")
-        if self.replay_looks not in ("training", "varied"):
-            raise UserError(f"--replay-looks is training or varied, not {self.replay_looks!r}")
+        if self.replay_looks not in REPLAY_LOOKS:
+            raise UserError(
+                f"--replay-looks is {', '.join(REPLAY_LOOKS)}, not {self.replay_looks!r}"
+            )
+        if world is not None and self.replay_looks == "painted" and world.paints is None:
+            raise UserError(
+                f"--replay-looks painted needs a world that draws any colour (the MuJoCo "
+                f"worlds); {world.name} draws only its named colours: training or varied"
+            )
         return self
 
 
@@ -113,11 +125,12 @@ class AdaptConfig:
         """Read back dataclasses.asdict(config) (TypeError or KeyError if malformed)."""
         return cls(int(d["budget"]), Finetuning(**d["finetuning"]))
 
-    def check(self) -> AdaptConfig:
-        """Raise a UserError for a setting out of range; returns self."""
+    def check(self, world: World | None = None) -> AdaptConfig:
+        """Raise a UserError for a setting out of range (or that `world` cannot do); returns
+        self."""
         if self.budget < 1:
             raise UserError(f"--budget must be at least 1, not {self.budget}")
-        self.finetuning.check()
+        self.finetuning.check(world)
         return self
 
 

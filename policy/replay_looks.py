@@ -10,17 +10,39 @@ physics does not change with a look). The policy then sees its whole training di
 the looks the user accepts, not only the budget's trajectories. Replayed trajectories on
 layouts the evaluation holds out (policy.heldout) stay as they are, and no variant shows a
 held-out value.
+
+`painted` goes beyond the named values where the world's renderer draws any colour
+(World.paints, the MuJoCo worlds): each slot a variant recoloured or added is drawn in a colour
+of its own, uniform over red, green and blue, kept PAINT_GAP from every named colour the
+variant may not show (held out, or not accepted). A policy then sees a continuum of looks, so
+that a held-out colour lies among colours it has seen rather than beside a few.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+
 from policy.heldout import Holdout, plan
 from policy.model import Policy
 from policy.train import replayed
-from policy.variants import Irrelevant, Source, from_feedback, render, spread_looks, variants
-from sim.core import Feedback, Task, Trajectory, World
+from policy.variants import (
+    Irrelevant,
+    Source,
+    from_feedback,
+    render,
+    spread_looks,
+    stable_int,
+    variants,
+)
+from sim.core import RGB, Feedback, Task, Trajectory, World
+
+PAINT_GAP = 0.3
+"""How far (Euclidean, red, green and blue in [0, 1]) a painted colour stays from every named
+colour a variant may not show: held out by the evaluation, or not accepted by R'. About the
+MuJoCo palette's closest pair (yellow and orange, 0.36): no painted colour is nearer a held-out
+one than two named colours are to each other."""
 
 
 def irrelevant(
@@ -63,6 +85,79 @@ def varied(
     return out
 
 
+def painted(
+    world: World,
+    task: Task,
+    feedback: Feedback,
+    replay: Sequence[Trajectory],
+    *,
+    seed: int,
+) -> list[Trajectory]:
+    """`varied`, with every slot a variant recoloured or added drawn in a colour of its own
+    from the continuum the world's renderer draws (World.paints), at least PAINT_GAP from
+    each named colour the variant may not show; the scenes keep the variant's named look."""
+    out = varied(world, task, feedback, replay, seed=seed)
+    for i, rgb in paint_colours(world, task, feedback, replay, out, seed=seed).items():
+        d = out[i]
+        frames = world.render_painted(d.scenes, [rgb] * len(d.scenes))  # (T+1, H, W, 3)
+        out[i] = Trajectory(d.scenes, frames, d.actions, d.success)
+    return out
+
+
+def paint_colours(
+    world: World,
+    task: Task,
+    feedback: Feedback,
+    replay: Sequence[Trajectory],
+    chosen: Sequence[Trajectory],
+    *,
+    seed: int,
+) -> dict[int, dict[str, RGB]]:
+    """For each replayed trajectory `varied` re-rendered (`chosen[i]` is not `replay[i]`), the
+    colour each slot it recoloured or added is painted in (seeded)."""
+    if world.paints is None:
+        raise ValueError(f"{world.name} draws only its named colours")
+    what, _ = irrelevant(world, task, feedback, seed=seed)
+    concept, named = world.paints.concept, world.paints.rgb
+    rng = np.random.default_rng([seed, stable_int("painted", world.name, task.shift, task.seed)])
+    out: dict[int, dict[str, RGB]] = {}
+    for i, (before, after) in enumerate(zip(replay, chosen, strict=True)):
+        if after is before or what is None:
+            continue
+        was, now = before.scenes[0], after.scenes[0]
+        slots = [
+            o.slot
+            for o in now.objects
+            if o.present
+            and concept in dict(o.values)
+            and (not was.obj(o.slot).present or was.obj(o.slot).value(concept) != o.value(concept))
+        ]
+        colours = {}
+        for slot in slots:
+            ok = _allowed(world, task, what, slot, concept)
+            colours[slot] = _far_from(rng, [rgb for v, rgb in named.items() if v not in ok])
+        if colours:
+            out[i] = colours
+    return out
+
+
+def _allowed(world: World, task: Task, what: Irrelevant, slot: str, concept: str) -> set[str]:
+    """The named values of slot.concept a variant may show."""
+    said = next((v for s, c, v in what.members if (s, c) == (slot, concept)), None)
+    values = world.space.accepted(task.reward, slot, concept) if said is None else said
+    return {v for v in values if what.allows(slot, concept, v)}
+
+
+def _far_from(rng: np.random.Generator, avoid: Sequence[RGB]) -> RGB:
+    """A uniformly drawn colour at least PAINT_GAP from each of `avoid`."""
+    far = np.asarray(avoid, float).reshape(-1, 3)  # (K, 3)
+    for _ in range(10_000):
+        rgb = rng.uniform(0.0, 1.0, 3)
+        if not len(far) or np.linalg.norm(far - rgb, axis=1).min() >= PAINT_GAP:
+            return (float(rgb[0]), float(rgb[1]), float(rgb[2]))
+    raise ValueError(f"no colour is {PAINT_GAP} from each of {len(far)} named colours")
+
+
 def replay_for(
     world: World,
     base: Policy,
@@ -75,8 +170,10 @@ def replay_for(
     seed: int,
 ) -> list[Trajectory]:
     """What finetuning `base` replays: its training data (`replayed`; none at share 0), in
-    the training looks ("training") or re-rendered over the TI labels ("varied")."""
+    the training looks ("training"), re-rendered over the TI labels ("varied") or, beyond
+    the named colours, painted ("painted")."""
     if share == 0:
         return []
     data = replayed(world, base, known)
-    return varied(world, task, feedback, data, seed=seed) if looks == "varied" else data
+    remake = {"training": None, "varied": varied, "painted": painted}[looks]
+    return data if remake is None else remake(world, task, feedback, data, seed=seed)

@@ -30,7 +30,7 @@ from dfa_viz.app.sessions import Session
 from dfa_viz.app.state import LoopState
 from dfa_viz.configs import AdaptConfig
 from dfa_viz.foreground import wait_then_stop
-from sim import check_world_name
+from sim import check_world_name, get_world
 from sim.core import UserError, check_shift
 
 
@@ -72,7 +72,7 @@ def open_state(
     # the registered name (one world, one name: a "module:Class" names its world): an unknown
     # world is one line, before anything is created
     world = check_world_name(world)
-    adapt.check()
+    adapt.check(get_world(world) if adapt.finetuning.replay_looks == "painted" else None)
     sess = (
         Session.open(session, world=world)
         if session is not None

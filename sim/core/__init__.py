@@ -28,7 +28,7 @@ from sim.core.task import (
     draw_from_reward,
 )
 from sim.core.trajectory import Trajectory
-from sim.core.world import ActBatch, Benchmark, Cloning, Key, World
+from sim.core.world import RGB, ActBatch, Benchmark, Cloning, Key, Paints, World
 
 __all__ = [
     "ABSENT",
@@ -36,6 +36,7 @@ __all__ = [
     "LAYOUTS",
     "PRESENCE",
     "PRESENT",
+    "RGB",
     "SHIFTS",
     "TRAIN",
     "ActBatch",
@@ -49,6 +50,7 @@ __all__ = [
     "Key",
     "Label",
     "Obj",
+    "Paints",
     "Reward",
     "Scene",
     "Slot",

@@ -23,6 +23,18 @@ from sim.core.view3d import View3D
 ActBatch = Callable[[np.ndarray], np.ndarray]
 DemoInput = Literal["waypoints", "keys", "pick_place", "effector", "file"]
 Criterion = Literal["follows", "succeeds"]
+RGB = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Paints:
+    """A look concept whose values are colours, which the renderer also draws in any colour
+    (`World.render_painted`): beyond the concept's named values, a continuum of them."""
+
+    concept: str
+    """The concept ("colour")."""
+    rgb: dict[str, RGB]
+    """Each named value's red, green and blue in [0, 1] (values not here have none)."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +135,8 @@ class World(abc.ABC):
             from those the demonstration took in other states: the policy, rolled out from
             the edited scene to the horizon, does the task (R' holds). The demonstration then
             shows the task can be done and gives the action distances the search ranks by.
+        paints: a colour concept the renderer draws in any colour (`Paints`;
+            `render_painted`), or None (by default: only the named values).
     """
 
     name: str
@@ -150,11 +164,19 @@ class World(abc.ABC):
     appearance_concepts: frozenset[str] = frozenset()
     simulated: bool = False
     counterfactual: Criterion = "follows"
+    paints: Paints | None = None
 
     # -- appearance ---------------------------------------------------------------------------
     @abc.abstractmethod
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
         """uint8 (B, H, W, 3); deterministic: the same scene gives the same pixels."""
+
+    def render_painted(
+        self, scenes: Sequence[Scene], paints: Sequence[dict[str, RGB]]
+    ) -> np.ndarray:
+        """uint8 (B, H, W, 3): each scene with the slots in paints[b] in those colours (the
+        `paints` concept's), the rest as render_batch draws it. Worlds with `paints` only."""
+        raise UserError(f"{self.name} draws only its named colours")
 
     def render(self, scene: Scene) -> np.ndarray:
         """uint8 (H, W, 3)."""

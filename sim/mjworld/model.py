@@ -104,17 +104,18 @@ def slot_looks(
     )
 
 
-def paint(model: mujoco.MjModel, looks: SlotLooks, colour: str) -> None:
+def paint(model: mujoco.MjModel, looks: SlotLooks, colour: str | Sequence[float]) -> None:
     """Show the slot in `colour` (in place): as built, or every geom and site in one palette
-    colour (materials set aside, so that the colour is the rgba's)."""
-    if colour in (looks.colour, AS_BUILT):
+    colour or red, green and blue in [0, 1] (materials set aside, so that the colour is the
+    rgba's)."""
+    if isinstance(colour, str) and colour in (looks.colour, AS_BUILT):
         for i, g in enumerate(looks.geoms):
             model.geom_matid[g] = looks.matids[i]
             model.geom_rgba[g] = looks.rgba[i]
         for j, s in enumerate(looks.sites):
             model.site_rgba[s] = looks.rgba[len(looks.geoms) + j]
         return
-    rgba = [*PALETTE[colour], 1.0]
+    rgba = [*(PALETTE[colour] if isinstance(colour, str) else colour), 1.0]
     for g in looks.geoms:
         model.geom_matid[g] = -1
         model.geom_rgba[g] = rgba

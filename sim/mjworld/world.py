@@ -40,10 +40,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.core import (
+    RGB,
     Benchmark,
     Concept,
     ConceptSpace,
     Obj,
+    Paints,
     Scene,
     Slot,
     Task,
@@ -105,6 +107,8 @@ class MujocoWorld(Benchmark):
         env = self._open()  # the concept space is read from the model
         self.built = {s: self._looks[s].colour for s in self._looks}
         from sim.mjworld.model import AS_BUILT, PALETTE
+
+        self.paints = Paints(COLOUR, dict(PALETTE))  # any rgba: a geom's colour is its rgba
 
         slots = []
         for spec in self.all_slots():
@@ -304,8 +308,16 @@ class MujocoWorld(Benchmark):
     def render_batch(self, scenes: Sequence[Scene]) -> np.ndarray:
         """uint8 (B, H, W, 3): the environment's camera on each scene (and its extra views to
         the right of it, W = size_px times the number of views)."""
+        return self.render_painted(scenes, [{}] * len(scenes))
+
+    def render_painted(
+        self, scenes: Sequence[Scene], paints: Sequence[dict[str, RGB]]
+    ) -> np.ndarray:
+        """render_batch with the slots in paints[b] drawn in those colours (rgb in [0, 1])."""
+        from sim.mjworld import model as M
         from sim.mjworld.gl import current
 
+        assert len(paints) == len(scenes), "one paint mapping per scene"
         size = self.size_px
         out = np.empty((len(scenes), *self.obs_shape), np.uint8)
         view = np.empty((size, size, 3), np.uint8)
@@ -314,6 +326,8 @@ class MujocoWorld(Benchmark):
             with current(renderer):
                 for b, scene in enumerate(scenes):
                     env = self.restore(scene)
+                    for slot, rgb in paints[b].items():  # drawn from the model's rgba
+                        M.paint(self.physics(env)[0], self._looks[slot], rgb)
                     self.before_render(env)
                     for k, cam in enumerate(cams):
                         renderer.update_scene(self.physics(env)[1], camera=cam, scene_option=option)

@@ -83,9 +83,13 @@ def test_the_loop_finetunes_on_it(nav, nav_policy, shifted):
     assert runs["training"].losses != runs["varied"].losses  # what is replayed is not
 
 
-def test_a_wrong_setting_is_one_line():
-    with pytest.raises(UserError, match="--replay-looks is training or varied"):
+def test_a_wrong_setting_is_one_line(nav):
+    with pytest.raises(UserError, match="--replay-looks is training, varied, painted, not"):
         Finetuning(replay_looks="spread").check()  # type: ignore[arg-type]
+    painted = Finetuning(replay_looks="painted")
+    with pytest.raises(UserError, match="nav2d draws only its named colours: training or varied"):
+        painted.check(nav)
+    assert painted.check() is painted  # no world: only the name is checked
     assert "replay_looks" not in Settings().to_dict()["finetuning"]
     varied_doc = Settings(finetuning=Finetuning(replay_looks="varied")).to_dict()
     assert varied_doc["finetuning"]["replay_looks"] == "varied"

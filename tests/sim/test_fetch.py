@@ -145,6 +145,25 @@ def test_frames_are_the_environments_render_in_every_look(world):
     )
 
 
+def test_painting_a_named_colour_draws_that_colour_and_any_other_draws_a_new_look(world):
+    scene = world.train_task(3).scene
+    table = scene.obj("table")
+    named = [scene.with_obj(table.with_value("colour", c)) for c in ("green", "purple")]
+    rgb = world.paints.rgb
+    painted = world.render_painted(
+        [scene, scene, scene], [{"table": rgb["green"]}, {"table": rgb["purple"]}, {}]
+    )
+    assert world.paints.concept == "colour" and set(rgb) <= set(
+        world.space.values("table", "colour")
+    )
+    assert np.array_equal(painted[:2], world.render_batch(named))  # the same rgba, the same pixels
+    assert np.array_equal(painted[2], world.render(scene))  # nothing painted: as drawn
+    between = world.render_painted([scene], [{"table": (0.3, 0.6, 0.9)}])[0]
+    changed = (between != painted[2]).any(-1)
+    assert 0.2 < changed.mean() < 0.9  # the table's pixels, not the whole frame
+    assert np.array_equal(world.render(scene), painted[2])  # the paint does not stay
+
+
 def test_every_shift_is_solved_by_the_expert_and_carries_its_cause(world):
     for shift in SHIFTS:
         for seed in range(3):
