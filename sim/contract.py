@@ -70,6 +70,19 @@ def rendering(world) -> None:
         expect(
             np.array_equal(world.render(s), f), f"render(scene {i}) differs from its batch frame"
         )
+    if world.paints is not None:  # a named value painted by its rgb is that value's render
+        concept, rgb = world.paints.concept, world.paints.rgb
+        shown = [
+            (s, o) for s in scenes for o in s.objects if o.present and concept in dict(o.values)
+        ]
+        expect(bool(shown), f"paints: no present object of these scenes has a {concept!r}")
+        for s, o in shown[:4]:
+            other = next(v for v in rgb if v != o.value(concept))
+            named = world.render(s.with_obj(o.with_value(concept, other)))
+            expect(
+                np.array_equal(world.render_painted([s], [{o.slot: rgb[other]}])[0], named),
+                f"paints: {o.slot} painted {other}'s rgb is not its {other} render",
+            )
 
 
 def stepping(world) -> None:
