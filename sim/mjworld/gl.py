@@ -1,5 +1,6 @@
 """One GL context per renderer, usable from any thread: MuJoCo's EGL contexts are current in
-one thread at a time, so each batch of frames takes the context and lets it go after."""
+one thread at a time, so each batch of frames takes the context and lets it go after; and the
+cameras a renderer draws from."""
 
 from __future__ import annotations
 
@@ -38,3 +39,21 @@ def current(renderer) -> Iterator[None]:
         yield
     finally:
         release_egl()
+
+
+def free_camera(camera: dict | str):
+    """What mujoco.Renderer.update_scene takes for `camera`: a free MjvCamera set from a
+    default_camera_config-like dict (distance, azimuth, elevation, lookat), or the model's
+    camera of that name as it is."""
+    if isinstance(camera, str):
+        return camera
+    import mujoco
+
+    cam = mujoco.MjvCamera()
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    for key, value in camera.items():
+        if key == "lookat":
+            cam.lookat[:] = value
+        else:
+            setattr(cam, key, value)
+    return cam

@@ -291,13 +291,13 @@ class MujocoWorld(Benchmark):
         if self._camera is None:
             import mujoco
 
-            from sim.mjworld.gl import release_egl
+            from sim.mjworld.gl import free_camera, release_egl
 
             model, _ = self.physics(self._open())
             renderer = mujoco.Renderer(model, self.size_px, self.size_px)
             release_egl()  # the constructor left the context current in this thread
             atexit.register(renderer.close)  # before EGL itself is let go at exit
-            cams = [_camera(c) for c in (self.camera, *self.extra_views)]
+            cams = [free_camera(c) for c in (self.camera, *self.extra_views)]
             option = mujoco.MjvOption()
             option.geomgroup[:] = [
                 int(g in self.drawn_groups) for g in range(len(option.geomgroup))
@@ -390,21 +390,3 @@ class MujocoWorld(Benchmark):
         from sim.mjworld import tasks as MT
 
         return MT.placements(self, task, demo)
-
-
-def _camera(camera: dict | str):
-    """What mujoco.Renderer.update_scene takes for `camera`: a free MjvCamera set from a
-    default_camera_config-like dict (distance, azimuth, elevation, lookat), or the model's
-    camera of that name as it is."""
-    if isinstance(camera, str):
-        return camera
-    import mujoco
-
-    cam = mujoco.MjvCamera()
-    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-    for key, value in camera.items():
-        if key == "lookat":
-            cam.lookat[:] = value
-        else:
-            setattr(cam, key, value)
-    return cam
