@@ -19,6 +19,11 @@ def experiment_q2(args: Q2Args) -> None:
     if args.max_size < 1:
         raise UserError(f"--max-size must be at least 1, not {args.max_size}")
     args.finetuning.check()
+    if args.finetuning.replay_looks == "painted":  # each world's one line, before any run
+        from sim import get_world
+
+        for name in dict.fromkeys(args.worlds):
+            args.finetuning.check(get_world(name))
     plan = Plan(
         worlds=tuple(dict.fromkeys(args.worlds)),
         shifts=SHIFT_KINDS if args.shift == "both" else (args.shift,),

@@ -235,6 +235,16 @@ def test_every_output_under_a_file_is_refused_before_any_work(capsys, tmp_path, 
     assert (tmp_path / "f").read_text() == "keep"
 
 
+@pytest.mark.parametrize("command", [["run"], ["serve"], ["experiment", "q2"]])
+def test_painted_replay_in_a_world_of_named_colours_is_one_line(capsys, tmp_path, command):
+    out = tmp_path / "out"
+    args = ["--world", "nav2d", "--replay-looks", "painted", "--out", str(out)]
+    line = one_line_error(capsys, *command, *args)
+    assert "--replay-looks painted needs a world that draws any colour" in line
+    assert "nav2d draws only its named colours: training or varied" in line
+    assert not out.exists()
+
+
 def test_malformed_demo_files(capsys, tmp_path, nav, nav_policy):
     from policy import failing_test_task
 
