@@ -20,7 +20,7 @@ that a held-out colour lies among colours it has seen rather than beside a few.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -31,12 +31,12 @@ from policy.variants import (
     Irrelevant,
     Source,
     from_feedback,
-    render,
     spread_looks,
     stable_int,
     variants,
 )
-from sim.core import RGB, Feedback, Task, Trajectory, World
+from sim.core import RGB, Feedback, Scene, Task, Trajectory, World
+from sim.core.ops import transform
 
 PAINT_GAP = 0.3
 """How far (Euclidean, red, green and blue in [0, 1]) a painted colour stays from every named
@@ -58,6 +58,30 @@ def irrelevant(
     return holdout.restrict(what), holdout
 
 
+def varied_scenes(
+    world: World,
+    task: Task,
+    feedback: Feedback,
+    replay: Sequence[Trajectory],
+    *,
+    seed: int,
+) -> dict[int, tuple[Scene, ...]]:
+    """The scenes a variant over the TI labels gives each replayed trajectory on a layout
+    finetuning may start from (one variant each, the accepted looks spread over them), by its
+    index in `replay`; none without a TI label. A trajectory no variant falls to is absent."""
+    what, holdout = irrelevant(world, task, feedback, seed=seed)
+    if what is None:
+        return {}
+    kept = [i for i, d in enumerate(replay) if holdout is None or holdout.keeps(world, d.scenes[0])]
+    srcs = [Source(task.with_scene(replay[i].scenes[0]), replay[i]) for i in kept]
+    like = spread_looks(task.scene, what)
+    out: dict[int, tuple[Scene, ...]] = {}
+    for k, ops in variants(world, srcs, lambda i: what, len(srcs), seed=seed, like=like):
+        if kept[k] not in out:
+            out[kept[k]] = tuple(transform(s, ops) for s in replay[kept[k]].scenes)
+    return dict(sorted(out.items()))
+
+
 def varied(
     world: World,
     task: Task,
@@ -66,22 +90,13 @@ def varied(
     *,
     seed: int,
 ) -> list[Trajectory]:
-    """`replay` with each trajectory on a layout finetuning may start from re-rendered once
-    under a variant over the TI labels, the accepted looks spread over them; the rest, and all
-    of it without a TI label, as given."""
-    what, holdout = irrelevant(world, task, feedback, seed=seed)
-    if what is None:
-        return list(replay)
-    kept = [i for i, d in enumerate(replay) if holdout is None or holdout.keeps(world, d.scenes[0])]
-    srcs = [Source(task.with_scene(replay[i].scenes[0]), replay[i]) for i in kept]
-    like = spread_looks(task.scene, what)
-    chosen = variants(world, srcs, lambda i: what, len(srcs), seed=seed, like=like)
+    """`replay` with each trajectory `varied_scenes` varies re-rendered in its new scenes,
+    its actions kept; the rest as given."""
     out = list(replay)
-    done: set[int] = set()
-    for (k, _), traj in zip(chosen, render(world, srcs, chosen), strict=True):
-        if k not in done:  # one variant each; a source without one keeps its training look
-            out[kept[k]] = traj
-            done.add(k)
+    for i, scenes in varied_scenes(world, task, feedback, replay, seed=seed).items():
+        d = replay[i]
+        frames = world.render_batch(list(scenes))  # (T+1, H, W, 3)
+        out[i] = Trajectory(scenes, frames, d.actions, d.success)
     return out
 
 
@@ -96,11 +111,17 @@ def painted(
     """`varied`, with every slot a variant recoloured or added drawn in a colour of its own
     from the continuum the world's renderer draws (World.paints), at least PAINT_GAP from
     each named colour the variant may not show; the scenes keep the variant's named look."""
-    out = varied(world, task, feedback, replay, seed=seed)
-    for i, rgb in paint_colours(world, task, feedback, replay, out, seed=seed).items():
-        d = out[i]
-        frames = world.render_painted(d.scenes, [rgb] * len(d.scenes))  # (T+1, H, W, 3)
-        out[i] = Trajectory(d.scenes, frames, d.actions, d.success)
+    scenes = varied_scenes(world, task, feedback, replay, seed=seed)
+    paints = paint_colours(world, task, feedback, replay, scenes, seed=seed)
+    out = list(replay)
+    for i, now in scenes.items():
+        d = replay[i]
+        frames = (  # (T+1, H, W, 3)
+            world.render_painted(now, [paints[i]] * len(now))
+            if i in paints
+            else world.render_batch(list(now))
+        )
+        out[i] = Trajectory(now, frames, d.actions, d.success)
     return out
 
 
@@ -109,22 +130,22 @@ def paint_colours(
     task: Task,
     feedback: Feedback,
     replay: Sequence[Trajectory],
-    chosen: Sequence[Trajectory],
+    scenes: Mapping[int, Sequence[Scene]],
     *,
     seed: int,
 ) -> dict[int, dict[str, RGB]]:
-    """For each replayed trajectory `varied` re-rendered (`chosen[i]` is not `replay[i]`), the
-    colour each slot it recoloured or added is painted in (seeded)."""
+    """For each replayed trajectory `varied_scenes` varies (`scenes[i]`), the colour each
+    slot it recoloured or added is painted in (seeded)."""
     if world.paints is None:
         raise ValueError(f"{world.name} draws only its named colours")
     what, _ = irrelevant(world, task, feedback, seed=seed)
+    if what is None:
+        return {}
     concept, named = world.paints.concept, world.paints.rgb
     rng = np.random.default_rng([seed, stable_int("painted", world.name, task.shift, task.seed)])
     out: dict[int, dict[str, RGB]] = {}
-    for i, (before, after) in enumerate(zip(replay, chosen, strict=True)):
-        if after is before or what is None:
-            continue
-        was, now = before.scenes[0], after.scenes[0]
+    for i in sorted(scenes):
+        was, now = replay[i].scenes[0], scenes[i][0]
         slots = [
             o.slot
             for o in now.objects
