@@ -13,7 +13,17 @@ def evaluation_sentence(ev: Evaluation, arrow: str = "->") -> str:
         f"success on {len(ev.before.shifted)} fresh tasks with the shift: "
         f"{ev.before.on_shift:.0%} {arrow} {ev.after.on_shift:.0%} (on "
         f"{len(ev.before.overall)} from all you want: {ev.before.on_all:.0%} {arrow} "
-        f"{ev.after.on_all:.0%})"
+        f"{ev.after.on_all:.0%}); {change_sentence(ev)}"
+    )
+
+
+def change_sentence(ev: Evaluation) -> str:
+    """Which of the distinct fresh scenes with the shift changed, and how likely chance alone
+    would rise as far (the exact one-sided McNemar test, Evaluation.change)."""
+    ch = ev.change()
+    return (
+        f"of {ch.units} distinct, {ch.fixed} newly solved and {ch.broken} newly failed "
+        f"(a rise this large by chance: p = {ch.p:.2g}, exact McNemar)"
     )
 
 

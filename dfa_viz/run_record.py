@@ -12,6 +12,7 @@ from typing import Any
 from policy import Policy
 from policy.evaluate import Freshness, Score
 from search import SearchResult
+from search.stats import PairedChange, mcnemar_exact
 from sim.core import Edit, Feedback, Label, Task, Trajectory
 
 
@@ -70,6 +71,22 @@ class Evaluation:
     fresh: Freshness | None = None
     """Distinct scenes and overlap with the finetuning trajectories (None when read back from
     a session that did not record it)."""
+
+    def change(self, overall: bool = False) -> PairedChange:
+        """The fresh tasks the finetuned policy newly solves and newly fails, and the exact
+        one-sided McNemar p of a rise that large by chance: on the shift, or (overall) over
+        all the user wants. Both policies face the same tasks, so the test pairs them; its
+        units are the distinct scenes, which come first among the fresh tasks (a repeated
+        scene is rolled out the same way again, no new evidence)."""
+        before, after = (
+            (self.before.overall, self.after.overall)
+            if overall
+            else (self.before.shifted, self.after.shifted)
+        )
+        if self.fresh is not None:
+            units = self.fresh.distinct_all if overall else self.fresh.distinct
+            before, after = before[:units], after[:units]
+        return mcnemar_exact(before, after)
 
 
 @dataclass(frozen=True)
@@ -161,6 +178,12 @@ class RunRecord:
             "success_after": ev.after.on_shift if ev else None,
             "success_all_before": ev.before.on_all if ev else None,
             "success_all_after": ev.after.on_all if ev else None,
+            "change": {
+                "on_shift": dataclasses.asdict(ev.change()),
+                "all": dataclasses.asdict(ev.change(overall=True)),
+            }
+            if ev
+            else None,
             "fresh": ev.fresh.to_json() if ev and ev.fresh else None,
             "recording": self.recording,
             "dataset": self.dataset,

@@ -1,6 +1,7 @@
 """95% intervals (Wilson's for a rate, Newcombe's for the difference of two paired rates,
 Student's t and the bootstrap for a mean) and exact tests over independent units (the
-signed-rank test, Holm's correction, the units a test needs)."""
+signed-rank test, McNemar's test of paired successes, Holm's correction, the units a test
+needs)."""
 
 from __future__ import annotations
 
@@ -106,6 +107,31 @@ def signed_rank_exact(diffs: Sequence[float], *, decimals: int = 9) -> SignedRan
         ways = ways + shifted
     p = float(ways[observed:].sum() / ways.sum())
     return SignedRank(n, int((d > 0).sum()), observed / 2, p)
+
+
+@dataclass(frozen=True)
+class PairedChange:
+    """The exact one-sided McNemar test of paired successes (H1: `after` solves more).
+
+    units: the units paired; fixed: those failed before and solved after; broken: solved
+    before, failed after. Under H0 each of the fixed + broken discordant units goes either way
+    with probability 1/2, so p = P(Binomial(fixed + broken, 1/2) >= fixed); 1.0 when no unit
+    changed."""
+
+    units: int
+    fixed: int
+    broken: int
+    p: float
+
+
+def mcnemar_exact(before: Sequence[bool], after: Sequence[bool]) -> PairedChange:
+    """The exact one-sided McNemar test of the same units' outcomes before and after."""
+    assert len(before) == len(after), f"{len(before)} units before, {len(after)} after"
+    fixed = sum(1 for b, a in zip(before, after, strict=True) if a and not b)
+    broken = sum(1 for b, a in zip(before, after, strict=True) if b and not a)
+    n = fixed + broken
+    p = math.fsum(math.comb(n, k) for k in range(fixed, n + 1)) / 2**n
+    return PairedChange(len(before), fixed, broken, p)
 
 
 def holm(ps: Sequence[float]) -> list[float]:

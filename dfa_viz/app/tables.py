@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dfa_viz.app.view import View
+from dfa_viz.report import change_sentence
 from sim.core import Edit, Scene, World
 
 NO_COUNTERFACTUAL = "No counterfactual found — the cause is outside the concept space."
@@ -94,6 +95,7 @@ def results_text(view: View) -> str:
             f"  \n**Success on {len(ev.before.shifted)} fresh tasks with the shift: "
             f"{ev.before.on_shift:.0%} → {ev.after.on_shift:.0%}**  \n"
             f"before `{strip(ev.before.shifted)}`  \nafter  `{strip(ev.after.shifted)}`  \n"
+            f"Paired, {change_sentence(ev)}.  \n"
             f"On {len(ev.before.overall)} fresh tasks from everything you want (the training "
             f"looks too): {ev.before.on_all:.0%} → {ev.after.on_all:.0%}"
             + (f"  \nHow fresh: {ev.fresh.sentence()}." if ev.fresh else "")

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rerun as rr
+from scipy.stats import binomtest
 
 from dfa_viz.cli import main
 
@@ -56,6 +57,15 @@ def test_json_report_has_the_promised_fields(run_json):
     assert r["feedback"][0]["label"] == "TI"
     # 0.4 -> 0.7 measured on held-out layouts and values: one task of 10 to spare
     assert r["success_after"] - r["success_before"] >= 0.2 - 1e-9
+    # the same tasks before and after, paired over their distinct scenes
+    for key, distinct in (("on_shift", "distinct_scenes"), ("all", "distinct_scenes_all")):
+        ch = r["change"][key]
+        assert ch["units"] == r["fresh"][distinct] and ch["fixed"] + ch["broken"] <= ch["units"]
+        assert ch["p"] == pytest.approx(
+            binomtest(ch["fixed"], ch["fixed"] + ch["broken"], 0.5, alternative="greater").pvalue
+            if ch["fixed"] + ch["broken"]
+            else 1.0
+        )
 
 
 def _chunks(path):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import rerun as rr
 from PIL import Image
-from scipy.stats import wilcoxon
+from scipy.stats import binomtest, wilcoxon
 
 from dfa_viz.cli import main
 from dfa_viz.configs import Finetuning
@@ -16,7 +16,7 @@ from dfa_viz.experiment.conditions import ACCURACY, PAPER, PAPER_BUDGETS, choose
 from dfa_viz.experiment.experiment import Plan, run_experiment
 from dfa_viz.experiment.results import results_folder, same_as_oracle, summarise
 from dfa_viz.experiment.runner import COLUMNS, Settings, nh_random_variants, prepare
-from search.stats import bootstrap_mean, holm, signed_rank_exact, units_for_power
+from search.stats import bootstrap_mean, holm, mcnemar_exact, signed_rank_exact, units_for_power
 from sim import PAPER_WORLDS, get_world
 from sim.core import UserError
 
@@ -304,6 +304,18 @@ def test_exact_signed_rank_by_hand():
     )
     assert signed_rank_exact(d).p == 19 / 128
     assert signed_rank_exact([]).p == 1.0
+
+
+def test_exact_mcnemar_by_hand():
+    before = [True, True, False, False, False, False, False]
+    after = [True, False, True, True, True, False, False]
+    ch = mcnemar_exact(before, after)
+    # 3 newly solved, 1 newly failed: P(Binomial(4, 1/2) >= 3) = 5/16
+    assert (ch.units, ch.fixed, ch.broken, ch.p) == (7, 3, 1, 5 / 16)
+    assert ch.p == pytest.approx(binomtest(3, 4, 0.5, alternative="greater").pvalue, abs=1e-12)
+    assert mcnemar_exact([False] * 13, [True] * 13).p == 0.5**13
+    assert mcnemar_exact(after, before).p == 15 / 16  # the same tasks the other way
+    assert mcnemar_exact([True, False], [True, False]).p == 1.0  # nothing changed
 
 
 def test_holm_on_known_p_values():

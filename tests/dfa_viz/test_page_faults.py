@@ -241,6 +241,7 @@ def test_sigterm_during_a_page_finetune_stops_cleanly_and_resumes(tmp_path):
         tab.click(FINETUNE)
         tab.wait_enabled(NEXT_TASK, CEILING_S)
         assert "fresh tasks with the shift" in tab.text()
+        assert re.search(r"Paired, of \d+ distinct, \d+ newly solved", tab.text())
         code, out = second.terminate()
     finally:
         second.kill()

@@ -25,6 +25,8 @@ def test_the_sentence_gives_both_scores_before_and_after():
     ev = _record().evaluation
     assert evaluation_sentence(ev) == (
         "success on 4 fresh tasks with the shift: 25% -> 75% (on 2 from all you want: 50% -> 100%)"
+        "; of 4 distinct, 2 newly solved and 0 newly failed (a rise this large by chance: "
+        "p = 0.25, exact McNemar)"
     )
     assert "25% → 75%" in evaluation_sentence(ev, "→")
 
