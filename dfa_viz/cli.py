@@ -27,7 +27,14 @@ import tyro
 
 from dfa_viz.app.args import DemoArgs, ServeArgs
 from dfa_viz.bench.args import BenchArgs
-from dfa_viz.configs import CheckWorldArgs, PriorArgs, RunArgs, TrainArgs, WorldsArgs
+from dfa_viz.configs import (
+    AdaptConfig,
+    CheckWorldArgs,
+    PriorArgs,
+    RunArgs,
+    TrainArgs,
+    WorldsArgs,
+)
 from dfa_viz.experiment.args import ExplainArgs, PairArgs, Q2Args, UnplantedArgs
 from dfa_viz.experiment.positions_args import PositionsArgs
 from dfa_viz.lerobot.args import ExportArgs, ViewArgs
@@ -319,14 +326,36 @@ def no_space(e: OSError) -> str:
     return f"{where}no space left to write it ({e.strerror}); make room and run the command again"
 
 
+def named_world(args: list[str]) -> str | None:
+    """The value of the last --world among `args`, or None."""
+    name = None
+    for i, arg in enumerate(args):
+        if arg == "--world" and i + 1 < len(args):
+            name = args[i + 1]
+        elif arg.startswith("--world="):
+            name = arg.partition("=")[2]
+    return name
+
+
+def parse(args: list[str]):
+    """The config `dfa ARGS` asks for. `dfa run --world W` starts from W's finetuning settings
+    (AdaptConfig.for_world), which its --help shows and the options given override."""
+    if args[:1] == ["run"] and (name := named_world(args[1:])) is not None:
+        from sim import get_world
+
+        adapt = AdaptConfig.for_world(get_world(name))
+        if adapt != AdaptConfig():
+            default = RunArgs(world=name, adapt=adapt)
+            return tyro.cli(RunArgs, args=args[1:], prog="dfa run", default=default)
+    return tyro.cli(Command, args=args, prog="dfa", config=(tyro.conf.OmitSubcommandPrefixes,))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `dfa` console script; user errors print one line and exit 2, a full
     disk one line and exit 1."""
     args = sys.argv[1:] if argv is None else list(argv)
     try:
-        config = tyro.cli(
-            Command, args=args, prog="dfa", config=(tyro.conf.OmitSubcommandPrefixes,)
-        )
+        config = parse(args)
         check_output(config)
         status = HANDLERS[type(config)](config)  # an int where the command says how it went
     except UserError as e:

@@ -8,7 +8,7 @@ torch, MuJoCo, rerun or viser.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -121,6 +121,14 @@ class AdaptConfig:
         return self.train_config(0).steps * (1 + self.finetuning.dagger_rounds)
 
     @classmethod
+    def for_world(cls, world: World) -> AdaptConfig:
+        """The defaults in `world`: the paper's, with the settings its `adapting` names
+        (`dfa run --world W` starts from these)."""
+        named = {k: v for k, v in asdict(world.adapting).items() if v is not None}
+        paper = cls()
+        return cls(named.pop("budget", paper.budget), replace(paper.finetuning, **named))
+
+    @classmethod
     def from_dict(cls, d: dict) -> AdaptConfig:
         """Read back dataclasses.asdict(config) (TypeError or KeyError if malformed)."""
         return cls(int(d["budget"]), Finetuning(**d["finetuning"]))
@@ -186,7 +194,8 @@ class RunArgs:
     """Also write the run's trajectories (demonstration, variants, counterfactuals, failed and
     finetuned rollouts) as a LeRobotDataset v3.0 in this folder (see `dfa export lerobot`)."""
     adapt: Annotated[AdaptConfig, tyro.conf.OmitArgPrefixes] = field(default_factory=AdaptConfig)
-    """How the policy is adapted (the finetuning experiment's defaults)."""
+    """How the policy is adapted: the finetuning experiment's defaults, or those the world
+    declares (World.adapting: FetchPickAndPlace's); `dfa run --world W --help` shows them."""
 
 
 @dataclass(frozen=True)

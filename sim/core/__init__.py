@@ -14,6 +14,7 @@ from sim.core.edit import EMPTY, Change, Edit, apply, apply_many, effective, sin
 from sim.core.effector import Waypoint
 from sim.core.errors import UserError
 from sim.core.feedback import Feedback, Label
+from sim.core.recipes import Adapting, Cloning
 from sim.core.scene import Obj, Scene
 from sim.core.task import (
     LAYOUTS,
@@ -28,7 +29,7 @@ from sim.core.task import (
     draw_from_reward,
 )
 from sim.core.trajectory import Trajectory
-from sim.core.world import RGB, ActBatch, Benchmark, Cloning, Key, Paints, World
+from sim.core.world import RGB, ActBatch, Benchmark, Key, Paints, World
 
 __all__ = [
     "ABSENT",
@@ -40,6 +41,7 @@ __all__ = [
     "SHIFTS",
     "TRAIN",
     "ActBatch",
+    "Adapting",
     "Benchmark",
     "Change",
     "Cloning",

@@ -14,6 +14,7 @@ from sim.core.edit import Edit, apply, apply_many
 from sim.core.effector import Waypoint
 from sim.core.errors import UserError
 from sim.core.parameters import SceneParameter
+from sim.core.recipes import Adapting, Cloning
 from sim.core.scene import Scene
 from sim.core.task import SHIFTS, Reward, Task
 from sim.core.trajectory import Trajectory
@@ -35,36 +36,6 @@ class Paints:
     """The concept ("colour")."""
     rgb: dict[str, RGB]
     """Each named value's red, green and blue in [0, 1] (values not here have none)."""
-
-
-@dataclass(frozen=True)
-class Cloning:
-    """How a world's base policy is cloned from its expert (policy.base, policy.train)."""
-
-    demonstrations: int = 10
-    """Training tasks, one expert demonstration each (the paper's 10)."""
-    steps: int = 400
-    """Gradient steps."""
-    noise: float = 0.0
-    """Standard deviation of the noise added to the actions a demonstration executes, while it
-    keeps the expert's own action as the label (closed-loop worlds: the policy then sees the
-    states its small mistakes lead to, and how the expert recovers from them)."""
-    dagger_rounds: int = 0
-    """DAgger rounds after the first clone (policy.train.dagger): each rolls the policy out on
-    the training tasks, labels every scene it visited with `expert_action` (a scripted expert
-    closed-loop on the state labels any scene) and clones again on everything so far, from the
-    policy so far, `steps` more gradient steps. Still behaviour cloning on the scripted expert;
-    0: plain cloning."""
-    head: str = "flatten"
-    """The policy's head (policy.model.HEADS): "flatten", the paper's; "spatial_softmax",
-    keypoints of the trunk's maps, for frames where what matters is a few pixels wide."""
-    lr_schedule: str = "constant"
-    """The learning rate over each fit's steps (policy.train.TrainConfig.lr_schedule):
-    "constant" (the paper's worlds) or "cosine"."""
-    shift_px: int = 0
-    """Each training frame moved by up to this many pixels along each axis, a fresh shift every
-    time it is drawn (policy.train.shifted; Kostrikov et al. 2021's random shift): where things
-    are relative to each other matters, not where they fall on the frame. 0: frames as given."""
 
 
 @dataclass(frozen=True)
@@ -112,6 +83,8 @@ class World(abc.ABC):
             for a discrete world, a name per action (DoorKey: "turn left", ..., "toggle").
         shifts: the shift kinds `test_task` makes (Benchmark worlds).
         cloning: how its base policy is cloned (Cloning: demonstrations, steps, action noise).
+        adapting: how `dfa run` finetunes in it where the paper's settings do not lift success
+            (Adapting: budget, steps, looks, DAgger rounds; by default the paper's).
         description: what the agent is and what it should do, in a sentence or two for a
             person who has never seen the world (the study's familiarisation); empty: tools
             say a training task's instruction instead.
@@ -157,6 +130,7 @@ class World(abc.ABC):
     action_names: tuple[str, ...] = ()
     shifts: tuple[str, ...] = ()
     cloning: Cloning = Cloning()
+    adapting: Adapting = Adapting()
     description: str = ""
     benchmark: bool = False
     """True for a Benchmark: training tasks, test tasks, fresh tasks and an expert."""
