@@ -96,7 +96,7 @@ TASKS = {
         extra_views=(FRONT,),
         # the paper's finetuning moves no held-out colour (README): many variants in many
         # colours, the replayed training data painted beyond the named colours, and DAgger
-        # rounds for the table, which fills most of the frame (about 75 min on 2 cores)
+        # rounds for the table, which fills most of the frame (about 70 min on 2 cores)
         adapting=Adapting(
             budget=100, steps=3000, looks="spread", replay_looks="painted", dagger_rounds=2
         ),
