@@ -40,14 +40,16 @@ from sim.doorkey.layout import (
     rows_of,
 )
 
-# The training layouts: (key, door, goal) rows, one per demonstration seed (expert: 19-27 steps).
-# The goal's row takes all ten rows, so the cloned policy cannot replay one action sequence: it
-# has to find the goal and read the scene from the image. The key and the door keep one row each
-# (a spread of all three rows needs about 5x the default cloning budget to fit), so every other
-# row of theirs is a place the training distribution never had: the `other` shift moves one
-# there. Layout 0 is the canonical one.
+# The training layouts: (key, door, goal) rows, one per demonstration seed (expert: 15-29 steps).
+# The goal's row takes all ten rows and the key's three, so the cloned policy cannot replay one
+# action sequence: it has to find the key and the goal and read the scene from the image. Thirty
+# layouts leave ten to hold out from finetuning whole (policy.heldout), so a run is scored on
+# about ten distinct fresh tasks rather than three. The door keeps one row (a spread of all
+# three rows needs about 5x the cloning budget to fit), so every other row of the door's and
+# seven of the key's are places the training distribution never had: the `other` shift moves
+# one there. Layout 0 is the canonical one.
 TRAIN_LAYOUTS: tuple[tuple[int, int, int], ...] = tuple(
-    (5, 3, goal) for goal in (8, 2, 4, 6, 3, 7, 5, 1, 9, 10)
+    (key, 3, goal) for key in (5, 4, 6) for goal in (8, 2, 4, 6, 3, 7, 5, 1, 9, 10)
 )
 TRAIN_COLOURS = {"key": "yellow", "door": "yellow", "goal": "green"}
 # where absent lava slots wait to be added by an edit: the first of these that is free and off
@@ -191,7 +193,7 @@ def train_rows(seed: int = 0) -> dict[str, int]:
 
 def train_task(seed: int = 0) -> Task:
     """A training task: yellow key and door, green goal, no lava, on the rows of
-    TRAIN_LAYOUTS[seed % 10]. Seed 0 is the canonical layout (key 5, door 3, goal 8)."""
+    TRAIN_LAYOUTS[seed % 30]. Seed 0 is the canonical layout (key 5, door 3, goal 8)."""
     scene = build(train_rows(seed), TRAIN_COLOURS, NO_LAVA, np.random.default_rng(0))
     assert scene is not None
     return Task(WORLD, scene, object_reward(TRAIN_COLOURS), "train", seed)

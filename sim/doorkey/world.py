@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Benchmark, Key, Obj, Scene, Task, Trajectory
+from sim.core import Benchmark, Cloning, Key, Obj, Scene, Task, Trajectory
 from sim.core.parameters import InvalidScene, SceneParameter, checked
 from sim.doorkey import layout as L
 from sim.doorkey import tasks
@@ -42,6 +42,9 @@ class DoorKeyWorld(Benchmark):
     discrete = True
     action_dim = N_ACTIONS
     epsilon = 0.0
+    # one demonstration on each of the 30 training layouts (tasks.TRAIN_LAYOUTS), 40 gradient
+    # steps per demonstration as the paper's ten get: every layout solved
+    cloning = Cloning(demonstrations=30, steps=1200)
     lossless_frames = True  # gridworld frames are recorded without lossy compression
     demo_input = "keys"
     description = (

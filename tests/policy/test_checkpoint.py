@@ -119,7 +119,8 @@ def test_committed_base_policies_match_todays_recipe(name):
     folder = B.WEIGHTS / name
     meta = json.loads((folder / "config.json").read_text())["meta"]
     assert meta["command"] == f"dfa train --retrain --worlds {name}"
-    assert meta["training_tasks_solved"] == "10/10"
+    n = world.cloning.demonstrations
+    assert meta["training_tasks_solved"] == f"{n}/{n}"
     policy = B.base_policy(world)
     stored = load_file(folder / "model.safetensors")
     for key, value in policy.net.state_dict().items():

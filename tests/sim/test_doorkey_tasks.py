@@ -26,22 +26,25 @@ def _with_lava(scene: Scene, slot: str, colour: str, cell) -> Scene:
 def _train_like(world, task):
     """The training task on the same key, door and goal rows as `task`."""
     rows = rows_of(task.scene)
-    (train,) = [t for t in map(world.train_task, range(10)) if rows_of(t.scene) == rows]
+    trains = map(world.train_task, range(len(TRAIN_LAYOUTS)))
+    (train,) = [t for t in trains if rows_of(t.scene) == rows]
     return train
 
 
-def test_training_layouts_vary_the_goal_row(world):
-    tasks = [world.train_task(seed) for seed in range(10)]
-    assert [rows_of(t.scene)["goal"] for t in tasks] == [8, 2, 4, 6, 3, 7, 5, 1, 9, 10]
-    assert {(rows_of(t.scene)["key"], rows_of(t.scene)["door"]) for t in tasks} == {(5, 3)}
-    assert world.train_task(10).scene == world.train_task(0).scene
+def test_training_layouts_vary_the_goal_and_key_rows(world):
+    tasks = [world.train_task(seed) for seed in range(30)]
+    assert world.cloning.demonstrations == len(tasks) == len(TRAIN_LAYOUTS)
+    assert [rows_of(t.scene)["goal"] for t in tasks] == [8, 2, 4, 6, 3, 7, 5, 1, 9, 10] * 3
+    assert [rows_of(t.scene)["key"] for t in tasks] == [5] * 10 + [4] * 10 + [6] * 10
+    assert {rows_of(t.scene)["door"] for t in tasks} == {3}
+    assert world.train_task(30).scene == world.train_task(0).scene
     assert rows_of(world.train_task().scene) == {"key": 5, "door": 3, "goal": 8}
     demos = [world.demonstrate(t) for t in tasks]
     assert all(d.success for d in demos)
-    assert len({d.actions.tobytes() for d in demos}) == 10  # ten different action sequences
+    assert len({d.actions.tobytes() for d in demos}) == 30  # thirty different action sequences
     for t in tasks:
         assert world.space.encode(t.scene).tolist() == world.space.encode(tasks[0].scene).tolist()
-    assert unseen_rows("goal") == () and 5 not in unseen_rows("key")
+    assert unseen_rows("goal") == () and set(unseen_rows("key")) == set(range(1, 11)) - {4, 5, 6}
     assert set(unseen_rows("door")) == set(range(1, 11)) - {3}
 
 
@@ -77,8 +80,9 @@ def test_shift_rewards_and_causes(world):
         assert other.cause is None
         moved = [s for s in ("key", "door", "goal") if rows_of(other.scene)[s] in unseen_rows(s)]
         assert len(moved) == 1 and moved[0] in ("key", "door")
-        back = dict(rows_of(other.scene), **{moved[0]: {"key": 5, "door": 3}[moved[0]]})
-        assert any(rows_of(world.train_task(i).scene) == back for i in range(10))
+        kept = {s: r for s, r in rows_of(other.scene).items() if s != moved[0]}
+        trains = [rows_of(world.train_task(i).scene) for i in range(len(TRAIN_LAYOUTS))]
+        assert any(all(rows[s] == r for s, r in kept.items()) for rows in trains)
         train = world.train_task()
         assert world.space.encode(other.scene).tolist() == world.space.encode(train.scene).tolist()
     with pytest.raises(UserError):
