@@ -94,3 +94,16 @@ def _lava_colours(task):
     return [
         o.value("colour") for o in task.scene.objects if o.slot.startswith("lava") and o.present
     ]
+
+
+def test_doorkey_holds_out_ten_layouts_so_a_run_is_scored_on_nearly_ten_distinct_tasks():
+    # DoorKey's base policy is cloned on 30 layouts: a third of the other 29 are held out of
+    # finetuning, so the 10 fresh tasks carrying an object shift stand on 9-10 distinct layouts
+    # (a seed's success moves in tenths); nav2d's 9 layouts leave 3
+    world = get_world("doorkey")
+    for seed in range(6):
+        task = world.test_task("object_ti", seed)
+        assert plan(world, task, seed).held_layouts == 10
+        shifted, _ = fresh(world, task, seed=seed)
+        assert len({layout_of(world, t.scene) for t in shifted}) >= 8
+        assert freshness(world, task, [task.scene], seed=seed).distinct >= 8
