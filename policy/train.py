@@ -14,8 +14,6 @@ from torch.nn import functional as F
 from policy.model import ImagePolicy, Policy, PolicyConfig
 from sim.core import Task, Trajectory, UserError, World
 
-N_TRAIN_DEMOS = 10
-
 
 @dataclass(frozen=True)
 class TrainConfig:
@@ -247,8 +245,8 @@ def _counted_on(on_loss: LossCallback, start: int) -> LossCallback:
 
 
 def training_tasks(world: World, seed: int = 0) -> list[Task]:
-    """The training tasks a base policy is cloned on (world.cloning.demonstrations of them;
-    the paper's worlds: N_TRAIN_DEMOS)."""
+    """The training tasks a base policy is cloned on (world.cloning.demonstrations of them:
+    10, the paper's, unless the world declares more; DoorKey 30)."""
     n = world.cloning.demonstrations
     return [world.train_task(seed=seed * n + i) for i in range(n)]
 
