@@ -193,7 +193,8 @@ def train_rows(seed: int = 0) -> dict[str, int]:
 
 def train_task(seed: int = 0) -> Task:
     """A training task: yellow key and door, green goal, no lava, on the rows of
-    TRAIN_LAYOUTS[seed % 30]. Seed 0 is the canonical layout (key 5, door 3, goal 8)."""
+    TRAIN_LAYOUTS[seed % len(TRAIN_LAYOUTS)]. Seed 0 is the canonical layout (key 5, door 3,
+    goal 8)."""
     scene = build(train_rows(seed), TRAIN_COLOURS, NO_LAVA, np.random.default_rng(0))
     assert scene is not None
     return Task(WORLD, scene, object_reward(TRAIN_COLOURS), "train", seed)

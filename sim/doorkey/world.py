@@ -42,9 +42,9 @@ class DoorKeyWorld(Benchmark):
     discrete = True
     action_dim = N_ACTIONS
     epsilon = 0.0
-    # one demonstration on each of the 30 training layouts (tasks.TRAIN_LAYOUTS), 40 gradient
-    # steps per demonstration as the paper's ten get: every layout solved
-    cloning = Cloning(demonstrations=30, steps=1200)
+    # one demonstration on each training layout, 40 gradient steps a demonstration as the
+    # paper's ten get (30 layouts: 1,200 steps): every layout solved
+    cloning = Cloning(demonstrations=len(tasks.TRAIN_LAYOUTS), steps=40 * len(tasks.TRAIN_LAYOUTS))
     lossless_frames = True  # gridworld frames are recorded without lossy compression
     demo_input = "keys"
     description = (
