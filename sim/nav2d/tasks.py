@@ -24,10 +24,23 @@ from sim.nav2d.dynamics import AVOID_RADIUS, dist
 WORLD = "nav2d"
 START = (-5.0, 5.0)
 GOAL = (5.0, -5.0)
-# Training layouts (agent start, goal): every pair of distinct corners with the goal off the
-# bottom-left corner. The start varies, so the policy must tell the agent from the goal by
-# appearance; the bottom-left goal is never seen, which is what the `other` shift uses.
-TRAIN_LAYOUTS = tuple((a, g) for g in R.CORNERS if g != (-5.0, -5.0) for a in R.CORNERS if a != g)
+# Where a training task's agent may start: the four corners and four points inside, placed so
+# that none lies within 1.25 units of the straight path from another start to a goal corner.
+# The expert crosses the arena at a constant speed that depends on where it started, so a start
+# on another start's path would show the same frame with two different actions.
+STARTS: tuple[tuple[float, float], ...] = (
+    *R.CORNERS,
+    (0.0, 3.75),
+    (3.75, 0.0),
+    (-3.75, -1.25),
+    (-1.25, -3.75),
+)
+# Training layouts (agent start, goal): the goal on a corner other than the bottom-left, the
+# agent on any other start point (21). The start varies, so the policy must tell the agent from
+# the goal by appearance, and a third of the layouts held out of finetuning (policy.heldout)
+# still leaves several for evaluation; the bottom-left goal is never seen, which is what the
+# `other` shift uses.
+TRAIN_LAYOUTS = tuple((a, g) for g in R.CORNERS if g != (-5.0, -5.0) for a in STARTS if a != g)
 
 
 def make_scene(goal_values, goal_pos=GOAL, distractor=None, distractor_pos=(5.0, 5.0), start=START):
@@ -49,7 +62,8 @@ def make_scene(goal_values, goal_pos=GOAL, distractor=None, distractor_pos=(5.0,
 
 
 def train_task(seed: int = 0) -> Task:
-    """A training task: the red X and the agent on two corners (TRAIN_LAYOUTS[seed % 9]).
+    """A training task: the red X on a corner and the agent on another start point
+    (TRAIN_LAYOUTS, cycling).
 
     Seed 0 is the canonical layout: agent top-left, goal bottom-right, no distractor.
     """

@@ -2,7 +2,8 @@
 distractor (a 36x36 numpy renderer, no physics).
 
 Concepts  goal: colour (red, green, blue, yellow) x shape (X, square, triangle, diamond);
-          distractor: presence, colour, shape. Objects sit on the four corners (±5, ±5).
+          distractor: presence, colour, shape. Objects sit on the four corners (±5, ±5);
+          the agent starts on a corner or one of four points inside (tasks.STARTS).
 Actions   (dx, dy) in [-1, 1]^2 per step, 20 steps.
 Shifts    object_ti / object_tr: the goal's colour or shape changed (R' does not / does care);
           distractor_ti / distractor_tr: a distractor off the path (R' ignores it / says keep
@@ -20,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sim.core import Benchmark, Obj, Scene, Task, Trajectory
+from sim.core import Benchmark, Cloning, Obj, Scene, Task, Trajectory
 from sim.core.parameters import SceneParameter, checked, keep_apart
 from sim.nav2d import dynamics as D
 from sim.nav2d import render as R
@@ -46,6 +47,9 @@ class Nav2DWorld(Benchmark):
     description = "The robot is the white disc; it should drive to the goal."
     image_extent = (-R.ARENA, R.ARENA, -R.ARENA, R.ARENA)
     action_names = ("dx", "dy")
+    # one expert demonstration per training layout, 40 gradient steps each (the paper's 10
+    # demonstrations get 400)
+    cloning = Cloning(demonstrations=len(TK.TRAIN_LAYOUTS), steps=40 * len(TK.TRAIN_LAYOUTS))
     # the goal's centre and the agent's start, anywhere their glyph and disc are whole
     scene_parameters = tuple(
         SceneParameter(f"{who}.{axis}", -R.OBJECT_REACH, R.OBJECT_REACH, "units")
