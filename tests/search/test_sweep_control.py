@@ -108,16 +108,16 @@ def test_ranked_by_the_difference_from_the_control_not_the_raw_rate():
 
 
 def test_a_real_sweep_counts_distinct_layouts():
-    """nav2d's training tasks are 9 layouts: 20 tasks give at most 9 trials per edit; the base
-    policy succeeds on all of them unedited, and a green goal fails all 9 (Wilson 70-100)."""
+    """nav2d's training tasks are 21 layouts: 20 tasks stand on 20 of them, so an edit has at
+    most 20 trials; the base policy succeeds on all of them unedited, and a green goal fails
+    nearly all (19 of 20 measured on 1 and 2 torch threads)."""
     world = get_world("nav2d")
     result = sweep(world, base_policy(world), sweep_tasks(world, 20))
-    assert result.tasks == 20 and result.distinct == 9 and result.base_failures == 0
-    assert all(c.n <= 9 for c in result.cells)
+    assert result.tasks == 20 and result.distinct == 20 and result.base_failures == 0
+    assert all(c.n <= 20 for c in result.cells)
     green = result.cell(*GREEN)
-    assert (green.n, green.failures, green.control_failures) == (9, 9, 0)
-    lo, hi = green.failure_ci
-    assert lo == pytest.approx(0.7008, abs=1e-4) and hi == pytest.approx(1.0)
-    assert green.difference_ci == newcombe_paired(0, 9, 0, 0)
+    assert (green.n, green.control_failures) == (20, 0) and green.failures >= 17
+    assert green.failure_ci == pytest.approx(wilson(green.failures, 20))
+    assert green.difference_ci == newcombe_paired(0, green.failures, 0, 20 - green.failures)
     diffs = [c.difference for c in result.cells]
     assert diffs == sorted(diffs, reverse=True)

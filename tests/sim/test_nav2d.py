@@ -83,3 +83,23 @@ def test_agent_discs_are_drawn_where_each_frame_has_its_agent():
         want = layers[b].copy()
         want[disc] = 255
         np.testing.assert_array_equal(got[b], want)
+
+
+def test_training_layouts_never_show_one_frame_with_two_expert_actions(nav):
+    # the expert crosses at a speed set by where it started: a start on (or near) another
+    # start's path to the same goal would give one frame two labels, which the base policy
+    # cannot fit. 21 layouts, one demonstration each, goals never bottom-left (`other`'s)
+    from sim.nav2d.dynamics import dist
+    from sim.nav2d.render import CORNERS
+    from sim.nav2d.tasks import GOAL, START, STARTS, TRAIN_LAYOUTS
+
+    assert len(TRAIN_LAYOUTS) == 21 == nav.cloning.demonstrations
+    assert {g for _, g in TRAIN_LAYOUTS} == set(CORNERS) - {(-5.0, -5.0)}
+    assert {nav.train_task(i).scene.agent[:2] for i in range(21)} == set(STARTS)
+    first = TRAIN_LAYOUTS.index((START, GOAL))  # seed 0's, the canonical layout
+    for i, (start, goal) in enumerate(TRAIN_LAYOUTS):
+        demo = nav.demonstrate(nav.train_task(i - first))
+        assert demo.success and demo.scenes[0].agent[:2] == start
+        for other, g in TRAIN_LAYOUTS:
+            if g == goal and other != start:  # how close this path passes the other start
+                assert min(dist(s.agent, other) for s in demo.scenes) >= 1.25 - 1e-9
