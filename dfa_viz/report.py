@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 from dfa_viz.run_record import Evaluation, RunRecord
+from search import SearchResult
 from sim import get_world
+from sim.core import World
 
 
 def evaluation_sentence(ev: Evaluation, arrow: str = "->") -> str:
@@ -24,6 +26,16 @@ def change_sentence(ev: Evaluation) -> str:
     return (
         f"of {ch.units} distinct, {ch.fixed} newly solved and {ch.broken} newly failed "
         f"(a rise this large by chance: p = {ch.p:.2g}, exact McNemar)"
+    )
+
+
+def closer_sentence(result: SearchResult, world: World) -> str:
+    """Why a counterfactual was held closer to the demonstration than the world's bound
+    (SearchResult.tightened)."""
+    return (
+        f"the failed rollout never strayed {world.epsilon:g} a step from the demonstration, so "
+        f"an edit had to keep the policy closer than it did: under {result.epsilon or 0.0:.3f} "
+        "a step"
     )
 
 
@@ -50,6 +62,8 @@ def format_report(r: RunRecord) -> str:
         lines.append(f"  counterfactual (size {s.size}, {len(s.tried)} edits tried): {best.edit}")
         for c in ties:
             lines.append(f"    also minimal: {c.edit}")
+        if s.tightened(world):
+            lines.append(f"    {closer_sentence(s, world)}")
     for lab in r.feedback.labels:
         fine = space.describe(lab.slot, lab.concept, lab.acceptable)
         kind = "TR" if lab.relevant else f"TI (acceptable: {fine})"

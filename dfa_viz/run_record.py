@@ -170,6 +170,7 @@ class RunRecord:
             "counterfactual": [c.edit.to_list() for c in d.chosen().counterfactuals] if d else [],
             "candidates_tried": len(d.result.tried) if d else 0,
             "search_complete": d.result.complete if d else None,
+            "search_epsilon": d.result.epsilon if d else None,
             "feedback": self.feedback.to_list(),
             "budget": ad.budget if ad else None,
             "augmented": len(ad.augmented) if ad else 0,

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import itertools
+import math
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
+
+import numpy as np
 
 from policy.model import Policy
 from search.enumerate import combinations, count
@@ -74,6 +77,10 @@ class SearchResult:
     criterion: str = "follows"
     """What made an edit a counterfactual (World.counterfactual): "follows" the
     demonstration step by step, or "succeeds" at the task."""
+    epsilon: float | None = None
+    """The per-step L1 bound an edit's rollout kept under (continuous worlds that "follow"):
+    the world's, or less where the failed rollout itself never left it (`bound`); None where
+    no bound applies."""
 
     @property
     def found(self) -> bool:
@@ -85,6 +92,7 @@ class SearchResult:
             "max_size": self.max_size,
             "complete": self.complete,
             "criterion": self.criterion,
+            "epsilon": self.epsilon,
             "counterfactuals": [c.to_dict() for c in self.counterfactuals],
             "tried": [c.to_dict() for c in self.tried],
         }
@@ -92,7 +100,7 @@ class SearchResult:
     @classmethod
     def from_json(cls, d: dict) -> SearchResult:
         """Read back `to_json` (UserError if malformed); `complete` defaults to True and
-        `criterion` to "follows"."""
+        `criterion` to "follows", `epsilon` to None."""
         criterion = d.get("criterion", "follows")
         if criterion not in typing.get_args(Criterion):
             raise UserError(f"malformed search result (criterion {criterion!r})")
@@ -104,9 +112,14 @@ class SearchResult:
                 d["max_size"],
                 bool(d.get("complete", True)),
                 criterion,
+                _epsilon(d.get("epsilon")),
             )
         except (KeyError, TypeError) as e:
             raise UserError(f"malformed search result ({type(e).__name__}: {e})") from None
+
+    def tightened(self, world: World) -> bool:
+        """True where the bound was tightened below the world's (`bound`)."""
+        return self.epsilon is not None and self.epsilon < world.epsilon
 
     @property
     def best(self) -> Candidate | None:
@@ -148,7 +161,14 @@ def counterfactual_search(
     task: whose R' judges a rollout that "succeeds" (default: `world.task_for(scene)`).
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
-    eps = world.epsilon if config.epsilon is None else config.epsilon
+    eps = bound(
+        world,
+        policy,
+        scene,
+        demo,
+        world.epsilon if config.epsilon is None else config.epsilon,
+        task,
+    )
     if config.learned is not None:
         config.learned.check_world(world)
     # One pass over every size saves steps where candidates drop early; where every rollout
@@ -159,6 +179,7 @@ def counterfactual_search(
             return _joint_search(
                 world, policy, scene, demo, task, sizes, eps, on_candidate, on_progress
             )
+    used = _used(world, eps)
     tried: list[Candidate] = []
     prior: dict[Change, float] = {}
     totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
@@ -202,11 +223,11 @@ def counterfactual_search(
                 break
         if valid:
             return SearchResult(
-                _rank(valid), tuple(tried), size, config.max_size, criterion=world.counterfactual
+                _rank(valid), tuple(tried), size, config.max_size, True, world.counterfactual, used
             )
     complete = len(tried) == sum(totals.values())
     return SearchResult(
-        (), tuple(tried), None, config.max_size, complete, criterion=world.counterfactual
+        (), tuple(tried), None, config.max_size, complete, world.counterfactual, used
     )
 
 
@@ -228,6 +249,7 @@ def _joint_search(
     """Small spaces: every size in one lockstep pass (one sequence of steps instead of one per
     size), then the same answer as size by size. Larger sizes than the answer's are discarded
     without being reported."""
+    used = _used(world, eps)
     edits = [e for k in totals for e in combinations(world.space, scene, k)]
     results = rollout_lockstep(world, policy, scene, demo, edits, epsilon=eps, task=task)
     tried: list[Candidate] = []
@@ -242,6 +264,35 @@ def _joint_search(
         valid = [c for c in batch if c.valid]
         if valid:
             return SearchResult(
-                _rank(valid), tuple(tried), size, max(totals), criterion=world.counterfactual
+                _rank(valid), tuple(tried), size, max(totals), True, world.counterfactual, used
             )
-    return SearchResult((), tuple(tried), None, max(totals), criterion=world.counterfactual)
+    return SearchResult((), tuple(tried), None, max(totals), True, world.counterfactual, used)
+
+
+def bound(
+    world: World, policy: Policy, scene: Scene, demo: Trajectory, eps: float, task: Task | None
+) -> float:
+    """The per-step bound a candidate's rollout must keep under: `eps`, or, where the unedited
+    scene's rollout already keeps under it at every step (a failure that drifts off the
+    demonstration by less than eps a step, yet misses), the largest distance that rollout
+    reaches, so that an edit counts only where the policy follows the demonstration more
+    closely than it did when it failed. Without this the unedited scene would pass the test
+    every counterfactual is held to. Only continuous worlds that "follow" have a bound."""
+    if world.discrete or world.counterfactual != "follows":
+        return eps
+    unedited = unedited_candidate(world, policy, scene, demo, epsilon=eps, task=task)
+    if not unedited.valid:
+        return eps
+    return float(np.nanmax(unedited.distances))
+
+
+def _used(world: World, eps: float) -> float | None:
+    return None if world.discrete or world.counterfactual != "follows" else eps
+
+
+def _epsilon(value: object) -> float | None:
+    if value is None:
+        return None
+    if not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+        raise UserError(f"malformed search result (epsilon {value!r})")
+    return float(value)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dfa_viz.app.view import View
-from dfa_viz.report import change_sentence
+from dfa_viz.report import change_sentence, closer_sentence
 from sim.core import Edit, Scene, World
 
 NO_COUNTERFACTUAL = "No counterfactual found — the cause is outside the concept space."
@@ -54,6 +54,8 @@ def diagnosis_text(view: View) -> str:
         f"**Counterfactual found** ({len(res.tried)} edits tried). The policy {does} "
         f"when the scene is edited like this ({changes}):"
     )
+    if view.world is not None and res.tightened(view.world):
+        text += f"  \n({closer_sentence(res, view.world).capitalize()}.)"
     if n > 1:
         other = "another edit" if n == 2 else f"{n - 1} other edits"
         text += f"  \n{other} as small work{'s' if n == 2 else ''} too: pick one to look at below."

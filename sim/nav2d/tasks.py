@@ -166,7 +166,7 @@ def fresh_tasks(
     """Draw each open (slot, concept) of R' from its allowed values (keeping the shift,
     when `shifted`: sim.core.carrying_shift).
 
-    The agent and goal keep the task's corners (layouts="task") or take a random training
+    The agent and goal keep the task's places (layouts="task") or take a random training
     layout ("train"); a present distractor takes any free corner; for `other`, the
     corners vary over every pair.
     """

@@ -22,12 +22,12 @@ from dfa_viz.cli import main
 pytestmark = pytest.mark.browser
 TINY = ["--budget", "3", "--steps", "10", "--n-eval", "2", "--max-size", "1"]
 DEMONSTRATION = "episode 0 · demonstration · succeeds · 20 steps"
-FAILED = "episode 5 · failed · fails · 20 steps"
+FAILED = "episode 4 · failed · fails · 20 steps"
 
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory) -> Path:
-    """nav2d object_ti seed 0 run by `dfa run --lerobot`: 7 episodes, 3 from the task's scene."""
+    """nav2d object_ti seed 0 run by `dfa run --lerobot`: 6 episodes, 3 from the task's scene."""
     tmp = tmp_path_factory.mktemp("demos")
     code = main(
         ["run", "--world", "nav2d", "--shift", "object_ti", "--seed", "0", *TINY,
@@ -77,12 +77,12 @@ def test_a_dataset_episode_is_the_demonstration(dataset, serve, ui, shots, tmp_p
     page.get_by_role("button", name="Failed").click()
 
     # the dropdown lists the episodes that start from this task's scene, the first chosen
-    ui.wait_for_text(page, "3 of the 7 episodes of")
+    ui.wait_for_text(page, "3 of the 6 episodes of")
     episode = page.get_by_role("combobox", name="dataset episode")
     expect(episode).to_have_value(DEMONSTRATION)
     episode.click()
     expect(page.get_by_role("option")).to_have_text(
-        [DEMONSTRATION, FAILED, "episode 6 · finetuned · succeeds · 20 steps"]
+        [DEMONSTRATION, FAILED, "episode 5 · finetuned · succeeds · 20 steps"]
     )
     page.keyboard.press("Escape")
     expect(page.get_by_role("button", name="Use my demonstration")).to_be_visible()
@@ -92,7 +92,7 @@ def test_a_dataset_episode_is_the_demonstration(dataset, serve, ui, shots, tmp_p
     # the failed rollout does not succeed: one line on the page, nothing saved
     _choose(page, FAILED)
     page.get_by_role("button", name=USE_EPISODE).click()
-    ui.wait_for_text(page, f"{dataset} episode 5 demonstration does not succeed")
+    ui.wait_for_text(page, f"{dataset} episode 4 demonstration does not succeed")
     page.screenshot(path=shots / "2-refused.png")
     folder = app.state.session.folder
     assert "demonstration" not in (folder / "session.jsonl").read_text()
@@ -103,7 +103,7 @@ def test_a_dataset_episode_is_the_demonstration(dataset, serve, ui, shots, tmp_p
     ui.wait_for_text(page, "Counterfactual found")
     (change, *_) = app.state.record.edit.ordered
     edit = f"{change.slot}.{change.concept}: {change.old} → {change.new}"
-    assert edit.startswith("goal.shape: triangle → ")  # the planted cause
+    assert edit.startswith("goal.shape: square → ")  # the planted cause
     expect(page.get_by_text(edit).first).to_be_visible()
     expect(page.get_by_role("button", name="Task-irrelevant (TI)")).to_be_visible()
     page.screenshot(path=shots / "3-counterfactual.png")

@@ -40,8 +40,10 @@ def test_nav2d_loop_by_clicks(serve_app, ui, shots):
     page = ui.open(app.url)
     page.screenshot(path=shots / "0-loaded.png")
 
-    # 1. pick (the defaults: nav2d, distractor_ti, seed 0) and judge
+    # 1. pick (the defaults, nav2d and distractor_ti, on seed 2) and judge
+    page.get_by_role("textbox", name="seed").fill("2")
     page.get_by_role("button", name="Load task").click()
+    expect(page.get_by_text("distractor_ti · seed 2")).to_be_visible()
     page.get_by_role("button", name="Failed").click()
 
     # 2. demonstrate: one waypoint on the goal, clicked on the image in the 3D view

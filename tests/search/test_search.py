@@ -115,3 +115,31 @@ def test_candidate_limit_stops_the_search_and_says_so(nav, nav_policy):
     assert "most promising" in result.summary()
     full = counterfactual_search(nav, nav_policy, task.scene, demo)
     assert full.complete and "outside the concept space" in full.summary()
+
+
+def test_a_failure_that_never_strays_the_bound_tightens_it(nav, nav_policy):
+    # nav2d object_ti seed 0: the base policy drifts 1.09 off the square goal while its actions
+    # stay within the world's 0.2 a step of the demonstration, so the unedited scene would pass
+    # the test an edit is held to; the search holds edits under the failure's own largest
+    # distance instead. A failure that strays further keeps the world's bound.
+    from search.counterfactual import SearchResult, bound
+    from search.prior import unedited_candidate
+
+    task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)
+    demo = nav.demonstrate(task)
+    loose = unedited_candidate(nav, nav_policy, task.scene, demo, task=task)
+    assert loose.valid and not nav.rollout(task, nav_policy).success
+    eps = bound(nav, nav_policy, task.scene, demo, nav.epsilon, task)
+    assert eps == pytest.approx(float(np.nanmax(loose.distances))) and eps < nav.epsilon
+    assert not unedited_candidate(nav, nav_policy, task.scene, demo, epsilon=eps, task=task).valid
+    result = counterfactual_search(nav, nav_policy, task.scene, demo)
+    assert result.epsilon == eps and result.tightened(nav)
+    assert all((c.distances < eps).all() for c in result.counterfactuals)
+    assert str(result.best.edit) == "goal.shape: square -> X"
+    assert SearchResult.from_json(result.to_json()).epsilon == eps
+
+    task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 0)
+    demo = nav.demonstrate(task)
+    assert bound(nav, nav_policy, task.scene, demo, nav.epsilon, task) == nav.epsilon
+    result = counterfactual_search(nav, nav_policy, task.scene, demo)
+    assert result.epsilon == nav.epsilon and not result.tightened(nav)
