@@ -135,14 +135,14 @@ def test_the_tasks_episodes_are_offered_and_the_chosen_one_is_replayed_and_saved
         # and the state refuses what the page does not offer for this task, whoever asks
         log = (folder / "session.jsonl").read_bytes()
         for episode in (1, 99, -1, True, "0"):
-            with pytest.raises(UserError, match="is not offered for this task; offered: 0, 5, 6"):
+            with pytest.raises(UserError, match="is not offered for this task; offered: 0, 4, 5"):
                 app.state.demonstrate(episode=episode)
         # an offered episode that does not succeed: one line on the page, nothing written
         _choose(app, tab, offered[1])
         tab.click(USE_EPISODE)
         tab.wait(lambda: "**Error:**" in tab.text(), "the refusal of a failed episode", CEILING_S)
         (line,) = [x for x in tab.text().splitlines() if "**Error:**" in x]
-        assert f"the {dataset} episode 5 demonstration does not succeed" in line
+        assert f"the {dataset} episode 4 demonstration does not succeed" in line
         assert (folder / "session.jsonl").read_bytes() == log
 
         _choose(app, tab, offered[0])
@@ -155,7 +155,7 @@ def test_the_tasks_episodes_are_offered_and_the_chosen_one_is_replayed_and_saved
     assert np.array_equal(record.demo.actions, ep.actions)
     assert np.array_equal(record.demo.observations[: ep.length], ep.frames)  # the replay's
     assert record.demo_source == f"{dataset} episode 0"
-    assert str(record.edit).startswith("goal.shape: triangle")  # the planted cause
+    assert str(record.edit).startswith("goal.shape: square")  # the planted cause
     (demo,) = [e for e in session_events(folder) if e["type"] == "demonstration"]
     assert demo["source"] == f"{dataset} episode 0"
     assert (folder / demo["file"]).is_file()
@@ -306,8 +306,8 @@ def test_dfa_serve_demos_offers_the_datasets_episodes(dataset, tmp_path):
             options = tab.gui[tab.one("dataset episode", "Dropdown")]["options"]
             assert [o.split(" · ")[:2] for o in options] == [
                 ["episode 0", "demonstration"],
-                ["episode 5", "failed"],
-                ["episode 6", "finetuned"],
+                ["episode 4", "failed"],
+                ["episode 5", "finetuned"],
             ]
             assert tab.enabled(USE_EPISODE)
         finally:

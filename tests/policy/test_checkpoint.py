@@ -136,7 +136,7 @@ def test_a_changed_recipe_with_stale_weights_is_an_error(nav, tmp_path, monkeypa
     with pytest.raises(UserError) as err:
         B.base_policy(nav)
     message = str(err.value)
-    assert "trained with another recipe (train.steps: 999 then, 400 now)" in message
+    assert "trained with another recipe (train.steps: 999 then, 840 now)" in message
     assert "dfa train --retrain --worlds nav2d" in message
     doc["meta"]["recipe"] = {
         **doc["meta"]["recipe"],
@@ -257,6 +257,13 @@ def test_a_committed_policy_is_checked_on_every_expert_run_and_a_few_runs_frames
     assert sum(c is not None for c in colours) == B.FRAMES_CHECKED
     assert all(c is None or c == f for c, f in zip(colours, full["frame_colours"], strict=True))
     assert B.recipe_change(full, {**checked, "frame_colours": colours}) is None
-    assert B.checked_recipe(nav, seed=0, config=B.base_config(nav)) == B.recipe(
-        nav, training_demos(nav), seed=0, config=B.base_config(nav)
-    )  # ten demonstrations: every one drawn
+    few = dataclasses.replace(nav.cloning, demonstrations=B.FRAMES_CHECKED)
+
+    class Few(type(nav)):
+        cloning = few
+
+    small = Few()
+    config = B.base_config(small)
+    assert B.checked_recipe(small, seed=0, config=config) == B.recipe(
+        small, training_demos(small), seed=0, config=config
+    )  # FRAMES_CHECKED demonstrations: every one drawn
