@@ -47,10 +47,10 @@ def test_a_heatmap_click_loads_that_failure(serve_app, ui, shots):
     page.get_by_role("button", name="Run sweep").click()
     ui.wait_until(lambda: app.state.sweep is not None, "the sweep")
     shown = app.state.sweep
-    expect(page.get_by_text("goal.colour=green").first).to_be_visible()
+    expect(page.get_by_text("goal.colour=blue").first).to_be_visible()
     expect(page.get_by_role("checkbox")).to_be_checked()
     target = shown.result.cells[0]
-    assert target.key == ("goal", "colour", "green") and target.failure_rate == 1.0
+    assert target.key == ("goal", "colour", "blue") and target.failure_rate == 1.0
 
     # where the heatmap lies on the screen: its grey cells' box there and in the image
     square, (ox, oy) = padded(shown.heatmap.image)
@@ -72,22 +72,22 @@ def test_a_heatmap_click_loads_that_failure(serve_app, ui, shots):
     page.screenshot(path=shots / "1-heatmap.png")
     page.mouse.click(x, y)
 
-    # the failure is the task now: training task 0 with the goal turned green, to diagnose
+    # the failure is the task now: a training task with the goal turned blue, to diagnose
     ui.wait_until(lambda: app.state.record is not None, "the task to load")
     rec = app.state.record
     assert rec.shift == "sweep" and rec.seed == target.example.seed
-    assert rec.task.scene.obj("goal").value("colour") == "green"
+    assert rec.task.scene.obj("goal").value("colour") == "blue"
     assert not rec.rollout.success
     expect(page.get_by_role("checkbox")).not_to_be_checked()
     events = [json.loads(x) for x in app.state.session.path.read_text().splitlines()]
     assert events[-1]["type"] == "task" and events[-1]["edit"] == [
-        {"slot": "goal", "concept": "colour", "from": "red", "to": "green"}
+        {"slot": "goal", "concept": "colour", "from": "red", "to": "blue"}
     ]
     page.get_by_role("tab", name="Compare").click()
     page.get_by_role("button", name="Failed").click()
     page.get_by_role("button", name="Ask the expert").click()
     ui.wait_for_text(page, "Counterfactual found")
-    expect(page.get_by_text("goal.colour: green → red").first).to_be_visible()
+    expect(page.get_by_text("goal.colour: blue → red").first).to_be_visible()
     page.screenshot(path=shots / "2-diagnosed.png")
 
 
