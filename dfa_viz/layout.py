@@ -65,7 +65,7 @@ def blueprint(world: World, record: RunRecord, *, saliency: str | None = None) -
             ),
             rrb.TimeSeriesView(
                 origin="search",
-                contents=["search/candidates/**", "search/epsilon"],
+                contents=["search/candidates/**", "search/epsilon", "search/bound"],
                 name="edits tried (green: kept)",
                 plot_legend=rrb.PlotLegend(visible=False),
             ),

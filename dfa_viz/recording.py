@@ -12,7 +12,7 @@ from dfa_viz import charts
 from dfa_viz.charts import rgb
 from dfa_viz.layout import action_labels, action_series, blueprint
 from dfa_viz.overlay import SaliencyLayer, heat_rgba
-from dfa_viz.report import evaluation_sentence
+from dfa_viz.report import closer_sentence, evaluation_sentence
 from dfa_viz.rrd import RrdFile, recording_id, send_blueprint
 from dfa_viz.run_record import Evaluation, RunRecord
 from policy.methods import METHOD_NAMES
@@ -153,14 +153,14 @@ class Recorder:
             self._series(entity, steps, distance_to_demo(self.world, traj, self._demo))
             self.rec.log(entity, rr.SeriesLines(names=name, colors=rgb(name)), static=True)
         if name == "demonstration":  # every world's bound, DoorKey's 0 included
-            eps = np.full(traj.horizon, self.world.epsilon)
-            for entity in ("action_distance/epsilon", "search/epsilon"):
-                self._series(entity, steps, eps)
-                self.rec.log(
-                    entity,
-                    rr.SeriesLines(names="ε (the search's bound)", colors=rgb("epsilon")),
-                    static=True,
-                )
+            self._bound("epsilon", self.world.epsilon, "ε (the search's bound)")
+
+    def _bound(self, key: str, value: float, label: str) -> None:
+        """A bound as a flat line over the demonstration's steps, in both distance plots."""
+        steps = np.arange(self._demo.horizon) if self._demo is not None else np.arange(1)
+        for entity in (f"action_distance/{key}", f"search/{key}"):
+            self._series(entity, steps, np.full(len(steps), value))
+            self.rec.log(entity, rr.SeriesLines(names=label, colors=rgb("epsilon")), static=True)
 
     def _pick_place(self, name: str, traj: Trajectory) -> None:
         """The pick point, the place point and an arrow between them, over the first frame."""
@@ -291,6 +291,9 @@ class Recorder:
         if len(result.counterfactuals) > 1:
             lines += ["", "Other changes as small that work too:"]
             lines += [f"- {c.edit}" for c in result.counterfactuals[1:]]
+        if result.tightened(self.world):  # held under less than ε: that bound drawn too
+            lines += ["", closer_sentence(result, self.world).capitalize() + "."]
+            self._bound("bound", result.epsilon or 0.0, f"the bound here: {result.epsilon:.3f}")
         self.rec.log(
             "edit/delta", rr.TextDocument("\n".join(lines), media_type="text/markdown"), static=True
         )

@@ -197,7 +197,9 @@ class ComparePanel:
             if run.adaptation is not None:
                 traces["finetuned"] = run.adaptation.rollout
             one_step = view.world.horizon == 1
-            data, series, scales = plots.distance_plot(view.world, run.demo, traces, step)
+            res = run.diagnosis.result if run.diagnosis else None
+            bound = res.epsilon if res is not None and res.tightened(view.world) else None
+            data, series, scales = plots.distance_plot(view.world, run.demo, traces, step, bound)
             with self.client.atomic():
                 self.image.image = image
                 self.trace.visible = not one_step

@@ -16,9 +16,11 @@ def distance_plot(
     demo: Trajectory | None,
     traces: dict[str, Trajectory | None],
     step: int,
+    bound: float | None = None,
 ):
-    """Distances of each named rollout to the demonstration over steps, the search's bound,
-    and a vertical line at `step` (the slider's step).
+    """Distances of each named rollout to the demonstration over steps, the search's bound (ε,
+    and `bound` where the search held edits under less: SearchResult.tightened), and a
+    vertical line at `step` (the slider's step).
 
     Each label carries its series' value at that step ("failed 0.42", "step 7"): the legend is
     static (LEGEND), so hovering shows no value that is not a number where the line is absent.
@@ -41,15 +43,13 @@ def distance_plot(
             lines.append(d)
             label = f"{name} {d[t]:.2f}" if np.isfinite(d[t]) else name
             series.append({"label": label, "stroke": COLOURS.get(name, "#495057"), "width": 2})
-        if not world.discrete and world.epsilon > 0:
-            lines.append(np.full(horizon, world.epsilon))
+        bounds = [(f"ε {world.epsilon:g}", world.epsilon)] if world.epsilon > 0 else []
+        if bound is not None:
+            bounds.append((f"bound here {bound:.3f}", bound))
+        for label, value in bounds if not world.discrete else []:
+            lines.append(np.full(horizon, value))
             series.append(
-                {
-                    "label": f"ε {world.epsilon:g}",
-                    "stroke": COLOURS["epsilon"],
-                    "width": 1,
-                    "dash": (4.0, 4.0),
-                }
+                {"label": label, "stroke": COLOURS["epsilon"], "width": 1, "dash": (4.0, 4.0)}
             )
     top = round(top * 1.1, 3)
     at = np.insert(np.arange(horizon), t + 1, t)  # (T + 1,) index t twice

@@ -130,6 +130,11 @@ def test_recording_reads_back_with_rerun(run_json, nav, nav_policy):
     steps = min(len(failed.actions), len(demo.actions))
     assert np.allclose(got, np.abs(failed.actions[:steps] - demo.actions[:steps]).sum(axis=1))
     assert got.max() == pytest.approx(bound, abs=1e-6) and bound < nav.epsilon
+    # the recording draws that bound beside ε and says why in the edit's panel
+    line = np.array([v[0] for v in chunks["/action_distance/bound"][0]["Scalars:scalars"]])
+    assert np.allclose(line, bound) and len(line) == 20
+    text = str(chunks["/edit/delta"][0])
+    assert "failed rollout never strayed 0.2 a step" in text
     # a reviewer sees what the recording is without us
     assert chunks["/__properties"][0]["RecordingInfo:name"] == [["nav2d · object_ti · seed 0"]]
     props = chunks["/__properties/task"][0]
