@@ -291,8 +291,8 @@ class Recorder:
         if len(result.counterfactuals) > 1:
             lines += ["", "Other changes as small that work too:"]
             lines += [f"- {c.edit}" for c in result.counterfactuals[1:]]
-        if result.tightened(self.world):  # held under less than ε: that bound drawn too
-            lines += ["", closer_sentence(result, self.world).capitalize() + "."]
+        if result.tightened:  # held under less than ε: that bound drawn too
+            lines += ["", closer_sentence(result).capitalize() + "."]
             self._bound("bound", result.epsilon or 0.0, f"the bound here: {result.epsilon:.3f}")
         self.rec.log(
             "edit/delta", rr.TextDocument("\n".join(lines), media_type="text/markdown"), static=True

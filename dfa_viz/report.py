@@ -5,7 +5,6 @@ from __future__ import annotations
 from dfa_viz.run_record import Evaluation, RunRecord
 from search import SearchResult
 from sim import get_world
-from sim.core import World
 
 
 def evaluation_sentence(ev: Evaluation, arrow: str = "->") -> str:
@@ -29,13 +28,13 @@ def change_sentence(ev: Evaluation) -> str:
     )
 
 
-def closer_sentence(result: SearchResult, world: World) -> str:
-    """Why a counterfactual was held closer to the demonstration than the world's bound
+def closer_sentence(result: SearchResult) -> str:
+    """Why a counterfactual was held closer to the demonstration than the bound asked for
     (SearchResult.tightened)."""
     return (
-        f"the failed rollout never strayed {world.epsilon:g} a step from the demonstration, so "
-        f"an edit had to keep the policy closer than it did: under {result.epsilon or 0.0:.3f} "
-        "a step"
+        f"the failed rollout never strayed {result.asked or 0.0:g} a step from the "
+        "demonstration, so an edit had to keep the policy closer than it did: under "
+        f"{result.epsilon or 0.0:.3f} a step"
     )
 
 
@@ -62,8 +61,8 @@ def format_report(r: RunRecord) -> str:
         lines.append(f"  counterfactual (size {s.size}, {len(s.tried)} edits tried): {best.edit}")
         for c in ties:
             lines.append(f"    also minimal: {c.edit}")
-        if s.tightened(world):
-            lines.append(f"    {closer_sentence(s, world)}")
+        if s.tightened:
+            lines.append(f"    {closer_sentence(s)}")
     for lab in r.feedback.labels:
         fine = space.describe(lab.slot, lab.concept, lab.acceptable)
         kind = "TR" if lab.relevant else f"TI (acceptable: {fine})"

@@ -79,8 +79,10 @@ class SearchResult:
     demonstration step by step, or "succeeds" at the task."""
     epsilon: float | None = None
     """The per-step L1 bound an edit's rollout kept under (continuous worlds that "follow"):
-    the world's, or less where the failed rollout itself never left it (`bound`); None where
-    no bound applies."""
+    the one asked for, or less where the failed rollout itself never left it (`bound`); None
+    where no bound applies."""
+    asked: float | None = None
+    """The bound asked for (the world's ε, or SearchConfig.epsilon); None where none applies."""
 
     @property
     def found(self) -> bool:
@@ -93,6 +95,7 @@ class SearchResult:
             "complete": self.complete,
             "criterion": self.criterion,
             "epsilon": self.epsilon,
+            "asked": self.asked,
             "counterfactuals": [c.to_dict() for c in self.counterfactuals],
             "tried": [c.to_dict() for c in self.tried],
         }
@@ -100,7 +103,7 @@ class SearchResult:
     @classmethod
     def from_json(cls, d: dict) -> SearchResult:
         """Read back `to_json` (UserError if malformed); `complete` defaults to True and
-        `criterion` to "follows", `epsilon` to None."""
+        `criterion` to "follows", `epsilon` and `asked` to None."""
         criterion = d.get("criterion", "follows")
         if criterion not in typing.get_args(Criterion):
             raise UserError(f"malformed search result (criterion {criterion!r})")
@@ -113,13 +116,15 @@ class SearchResult:
                 bool(d.get("complete", True)),
                 criterion,
                 _epsilon(d.get("epsilon")),
+                _epsilon(d.get("asked")),
             )
         except (KeyError, TypeError) as e:
             raise UserError(f"malformed search result ({type(e).__name__}: {e})") from None
 
-    def tightened(self, world: World) -> bool:
-        """True where the bound was tightened below the world's (`bound`)."""
-        return self.epsilon is not None and self.epsilon < world.epsilon
+    @property
+    def tightened(self) -> bool:
+        """True where the bound was tightened below the one asked for (`bound`)."""
+        return self.epsilon is not None and self.asked is not None and self.epsilon < self.asked
 
     @property
     def best(self) -> Candidate | None:
@@ -161,14 +166,8 @@ def counterfactual_search(
     task: whose R' judges a rollout that "succeeds" (default: `world.task_for(scene)`).
     Stops at the first size with a valid edit and returns all valid edits of that size.
     """
-    eps = bound(
-        world,
-        policy,
-        scene,
-        demo,
-        world.epsilon if config.epsilon is None else config.epsilon,
-        task,
-    )
+    asked = world.epsilon if config.epsilon is None else config.epsilon
+    eps = bound(world, policy, scene, demo, asked, task)
     if config.learned is not None:
         config.learned.check_world(world)
     # One pass over every size saves steps where candidates drop early; where every rollout
@@ -177,9 +176,9 @@ def counterfactual_search(
         sizes = {k: count(world.space, scene, k) for k in range(1, config.max_size + 1)}
         if sum(sizes.values()) <= config.joint_below:
             return _joint_search(
-                world, policy, scene, demo, task, sizes, eps, on_candidate, on_progress
+                world, policy, scene, demo, task, sizes, (eps, asked), on_candidate, on_progress
             )
-    used = _used(world, eps)
+    used = _used(world, eps, asked)
     tried: list[Candidate] = []
     prior: dict[Change, float] = {}
     totals: dict[int, int] = {}  # edits of each size, counted as the size is reached
@@ -223,11 +222,11 @@ def counterfactual_search(
                 break
         if valid:
             return SearchResult(
-                _rank(valid), tuple(tried), size, config.max_size, True, world.counterfactual, used
+                _rank(valid), tuple(tried), size, config.max_size, True, world.counterfactual, *used
             )
     complete = len(tried) == sum(totals.values())
     return SearchResult(
-        (), tuple(tried), None, config.max_size, complete, world.counterfactual, used
+        (), tuple(tried), None, config.max_size, complete, world.counterfactual, *used
     )
 
 
@@ -242,14 +241,15 @@ def _joint_search(
     demo: Trajectory,
     task: Task | None,
     totals: dict[int, int],
-    eps: float,
+    bounds: tuple[float, float],
     on_candidate: CandidateCallback | None,
     on_progress: ProgressCallback | None,
 ) -> SearchResult:
     """Small spaces: every size in one lockstep pass (one sequence of steps instead of one per
     size), then the same answer as size by size. Larger sizes than the answer's are discarded
     without being reported."""
-    used = _used(world, eps)
+    eps, asked = bounds  # the bound used, the bound asked for
+    used = _used(world, eps, asked)
     edits = [e for k in totals for e in combinations(world.space, scene, k)]
     results = rollout_lockstep(world, policy, scene, demo, edits, epsilon=eps, task=task)
     tried: list[Candidate] = []
@@ -264,9 +264,9 @@ def _joint_search(
         valid = [c for c in batch if c.valid]
         if valid:
             return SearchResult(
-                _rank(valid), tuple(tried), size, max(totals), True, world.counterfactual, used
+                _rank(valid), tuple(tried), size, max(totals), True, world.counterfactual, *used
             )
-    return SearchResult((), tuple(tried), None, max(totals), True, world.counterfactual, used)
+    return SearchResult((), tuple(tried), None, max(totals), True, world.counterfactual, *used)
 
 
 def bound(
@@ -286,8 +286,9 @@ def bound(
     return float(np.nanmax(unedited.distances))
 
 
-def _used(world: World, eps: float) -> float | None:
-    return None if world.discrete or world.counterfactual != "follows" else eps
+def _used(world: World, eps: float, asked: float) -> tuple[float | None, float | None]:
+    """(the bound used, the bound asked for), or (None, None) where no bound applies."""
+    return (None, None) if world.discrete or world.counterfactual != "follows" else (eps, asked)
 
 
 def _epsilon(value: object) -> float | None:

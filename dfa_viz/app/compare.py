@@ -198,7 +198,7 @@ class ComparePanel:
                 traces["finetuned"] = run.adaptation.rollout
             one_step = view.world.horizon == 1
             res = run.diagnosis.result if run.diagnosis else None
-            bound = res.epsilon if res is not None and res.tightened(view.world) else None
+            bound = res.epsilon if res is not None and res.tightened else None
             data, series, scales = plots.distance_plot(view.world, run.demo, traces, step, bound)
             with self.client.atomic():
                 self.image.image = image

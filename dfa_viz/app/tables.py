@@ -54,8 +54,8 @@ def diagnosis_text(view: View) -> str:
         f"**Counterfactual found** ({len(res.tried)} edits tried). The policy {does} "
         f"when the scene is edited like this ({changes}):"
     )
-    if view.world is not None and res.tightened(view.world):
-        text += f"  \n({closer_sentence(res, view.world).capitalize()}.)"
+    if res.tightened:
+        text += f"  \n({closer_sentence(res).capitalize()}.)"
     if n > 1:
         other = "another edit" if n == 2 else f"{n - 1} other edits"
         text += f"  \n{other} as small work{'s' if n == 2 else ''} too: pick one to look at below."

@@ -14,7 +14,7 @@ def test_a_tightened_bound_is_drawn_beside_epsilon(nav, nav_policy):
     task, _ = failing_test_task(nav, nav_policy, "object_ti", 0)  # a drift within ε
     demo = nav.demonstrate(task)
     result = counterfactual_search(nav, nav_policy, task.scene, demo)
-    assert result.tightened(nav)
+    assert result.tightened
     traces = {"failed": nav.rollout(task, nav_policy)}
     data, series, _ = distance_plot(nav, demo, traces, 3, result.epsilon)
     labels = [s["label"] for s in series]

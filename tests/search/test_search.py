@@ -5,7 +5,7 @@ import pytest
 
 from policy import failing_test_task
 from search import SearchConfig, combinations, count, counterfactual_search, singles
-from sim.core import PRESENCE
+from sim.core import PRESENCE, UserError
 
 
 def test_importing_search_pulls_no_ui():
@@ -133,13 +133,17 @@ def test_a_failure_that_never_strays_the_bound_tightens_it(nav, nav_policy):
     assert eps == pytest.approx(float(np.nanmax(loose.distances))) and eps < nav.epsilon
     assert not unedited_candidate(nav, nav_policy, task.scene, demo, epsilon=eps, task=task).valid
     result = counterfactual_search(nav, nav_policy, task.scene, demo)
-    assert result.epsilon == eps and result.tightened(nav)
+    assert result.epsilon == eps and result.tightened
     assert all((c.distances < eps).all() for c in result.counterfactuals)
     assert str(result.best.edit) == "goal.shape: square -> X"
-    assert SearchResult.from_json(result.to_json()).epsilon == eps
+    again = SearchResult.from_json(result.to_json())
+    assert (again.epsilon, again.asked, again.tightened) == (eps, nav.epsilon, True)
+    for bad in ("0.1", float("nan"), -1.0):  # a damaged session's search: one line, refused
+        with pytest.raises(UserError, match="malformed search result"):
+            SearchResult.from_json({**result.to_json(), "epsilon": bad})
 
     task, _ = failing_test_task(nav, nav_policy, "distractor_ti", 0)
     demo = nav.demonstrate(task)
     assert bound(nav, nav_policy, task.scene, demo, nav.epsilon, task) == nav.epsilon
     result = counterfactual_search(nav, nav_policy, task.scene, demo)
-    assert result.epsilon == nav.epsilon and not result.tightened(nav)
+    assert result.epsilon == nav.epsilon and not result.tightened
