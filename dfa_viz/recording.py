@@ -94,9 +94,7 @@ class Recorder:
                 instruction=task.reward.instruction,
             ),
         )
-        self.rec.log(
-            "task", rr.TextDocument(task_text(record), media_type="text/markdown"), static=True
-        )
+        self._markdown("task", task_text(record))
         self._demo: Trajectory | None = None
 
     # -- helpers ------------------------------------------------------------------------------
@@ -112,6 +110,9 @@ class Recorder:
                 indexes=[rr.TimeColumn(timeline, sequence=steps[keep])],
                 columns=rr.Scalars.columns(scalars=values[keep].astype(np.float64)),
             )
+
+    def _markdown(self, entity: str, text: str) -> None:
+        self.rec.log(entity, rr.TextDocument(text, media_type="text/markdown"), static=True)
 
     def _chart(self, name: str, image: np.ndarray) -> None:
         self.rec.log(f"charts/{name}", rr.Image(image), static=True)
@@ -278,9 +279,7 @@ class Recorder:
                 "**No counterfactual found** — the cause is outside the concept space "
                 f"(tried {len(result.tried)} edits of up to {result.max_size} changes)."
             )
-            self.rec.log(
-                "edit/delta", rr.TextDocument(text, media_type="text/markdown"), static=True
-            )
+            self._markdown("edit/delta", text)
             return
         lines = [
             "The smallest change to the scene after which the policy does what the "
@@ -294,9 +293,7 @@ class Recorder:
         if result.tightened:  # held under less than ε: that bound drawn too
             lines += ["", closer_sentence(result).capitalize() + "."]
             self._bound("bound", result.epsilon or 0.0, f"the bound here: {result.epsilon:.3f}")
-        self.rec.log(
-            "edit/delta", rr.TextDocument("\n".join(lines), media_type="text/markdown"), static=True
-        )
+        self._markdown("edit/delta", "\n".join(lines))
         space = self.world.space
         before = space.encode(self.task.scene).astype(np.float64)
         after = space.encode(self.world.apply(self.task.scene, result.best.edit)).astype(np.float64)
@@ -312,9 +309,7 @@ class Recorder:
             else:
                 fine = space.describe(lab.slot, lab.concept, lab.acceptable)
                 rows.append(f"| {lab.slot}.{lab.concept} | TI | {fine} |")
-        self.rec.log(
-            "feedback", rr.TextDocument("\n".join(rows), media_type="text/markdown"), static=True
-        )
+        self._markdown("feedback", "\n".join(rows))
 
     def augmented(self, trajectories: Sequence[Trajectory]) -> None:
         self.rec.reset_time()
